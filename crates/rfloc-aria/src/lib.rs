@@ -1,0 +1,27 @@
+//! Native Pioneer P3-DX serial protocol (P2OS/AROS/ARCOS, as spoken by ARIA): a sans-IO codec,
+//! an async client with watchdog keep-alive and reconnection, and a robot emulator.
+//!
+//! Layers:
+//! - [`frame`]: packet framing, checksum and a resynchronising decoder;
+//! - [`command`]: client commands and their argument encoding, with clamping;
+//! - [`sip`]: server information packets (motor SIP, SYNC2 identity, CONFIG);
+//! - [`odometry`]: raw SIP fields to continuous odometry in metres and radians;
+//! - [`client`]: [`AriaClient`], the async driver, and the [`MobileBase`] trait;
+//! - [`emulator`]: [`RobotEmulator`], a differential-drive robot serving the protocol.
+//!
+//! The protocol facts used here are listed with their sources in `docs/protocols/pioneer-aria.md`.
+#![forbid(unsafe_code)]
+#![deny(clippy::indexing_slicing)]
+
+pub mod command;
+pub mod frame;
+pub mod odometry;
+pub mod sip;
+
+pub use command::{Arg, ArgError, Command, CommandError, CommandLimits, LinkPhase};
+pub use frame::{checksum, EncodeError, Frame, FrameDecoder, FrameError};
+pub use odometry::{ConversionFactors, OdometrySample, OdometryTracker};
+pub use sip::{
+    ConfigPacket, MotorSip, RobotIdentity, ServerPacket, SipError, SipTail, SonarReading,
+    StallBumpers,
+};
