@@ -1,0 +1,41 @@
+//! What a bearing scan needs from a radio, as a trait so it can be mocked.
+
+use std::future::Future;
+
+use tokio::io::{AsyncRead, AsyncWrite};
+
+use crate::address::Address64;
+use crate::client::{XBeeClient, XBeeError};
+use crate::nd::Node;
+
+/// Discovers beacons and measures the RSSI of one of them.
+pub trait RssiProbe {
+    /// Error of the implementation.
+    type Error: std::error::Error + Send + Sync + 'static;
+
+    /// Runs one discovery round and returns the nodes that answered (with RSSI where the
+    /// record carried one).
+    fn discover_nodes(&mut self) -> impl Future<Output = Result<Vec<Node>, Self::Error>> + Send;
+
+    /// RSSI of the link to `node` in dBm, `None` if the node was not heard.
+    fn node_rssi(
+        &mut self,
+        node: Address64,
+    ) -> impl Future<Output = Result<Option<f64>, Self::Error>> + Send;
+}
+
+impl<T> RssiProbe for XBeeClient<T>
+where
+    T: AsyncRead + AsyncWrite + Unpin + Send,
+{
+    type Error = XBeeError;
+
+    async fn discover_nodes(&mut self) -> Result<Vec<Node>, XBeeError> {
+        Ok(self.discover().await?.nodes)
+    }
+
+    /// Uses a remote `DB` query ([`XBeeClient::remote_rssi`]).
+    async fn node_rssi(&mut self, node: Address64) -> Result<Option<f64>, XBeeError> {
+        self.remote_rssi(node).await
+    }
+}
