@@ -108,6 +108,8 @@ impl fmt::Display for HexBytes<'_> {
 pub struct DecodeStats {
     /// Frames delivered with a good checksum.
     pub frames: u64,
+    /// Wire bytes of the delivered frames (delimiter, escapes and checksum included).
+    pub frame_bytes: u64,
     /// Wire bytes discarded (garbage, rejected candidates, truncated frames).
     pub dropped_bytes: u64,
     /// Candidates rejected because the checksum did not match.
@@ -340,6 +342,7 @@ impl FrameDecoder {
                 let expected = checksum(&self.data);
                 if byte == expected {
                     self.stats.frames += 1;
+                    self.stats.frame_bytes += self.wire.len() as u64;
                     self.state = State::Hunt;
                     self.wire.clear();
                     Some(Ok(std::mem::take(&mut self.data)))
