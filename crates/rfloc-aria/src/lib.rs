@@ -13,13 +13,25 @@
 #![forbid(unsafe_code)]
 #![deny(clippy::indexing_slicing)]
 
+pub mod client;
 pub mod command;
+pub mod emulator;
 pub mod frame;
+mod mock_base;
 pub mod odometry;
 pub mod sip;
 
+pub use client::{
+    AriaClient, ClientConfig, ClientError, ClientStats, ConnectFuture, LinkState, MobileBase,
+    Odometry,
+};
 pub use command::{Arg, ArgError, Command, CommandError, CommandLimits, LinkPhase};
+pub use emulator::{
+    EmulatorConfig, EmulatorError, EmulatorHandle, EmulatorState, MotionHook, RobotEmulator,
+    WheelSlip,
+};
 pub use frame::{checksum, EncodeError, Frame, FrameDecoder, FrameError};
+pub use mock_base::{MockBase, MockBaseCall};
 pub use odometry::{ConversionFactors, OdometrySample, OdometryTracker};
 pub use sip::{
     ConfigPacket, MotorSip, RobotIdentity, ServerPacket, SipError, SipTail, SonarReading,

@@ -1,0 +1,864 @@
+//! A differential-drive Pioneer that serves the protocol over any byte stream, for tests and
+//! the simulator.
+//!
+//! Simulated time advances in fixed steps of one SIP period per tick; ticks happen every
+//! `sip_period / time_scale` of wall time, so with `time_scale = k` the robot runs k times faster
+//! than wall time. Everything the robot does is in simulated time: accelerations, the SIP period
+//! and the watchdog. A client talking to a scaled emulator must scale its own periods too
+//! (see [`crate::ClientConfig::scaled`]).
+
+use std::time::Duration;
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use rfloc_pose::{wrap_angle, Pose2};
+use thiserror::Error;
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
+use tokio::sync::watch;
+use tokio::time::MissedTickBehavior;
+use tracing::Instrument;
+
+use crate::command::{number, Arg, Command, LinkPhase};
+use crate::frame::{Frame, FrameDecoder};
+use crate::odometry::ConversionFactors;
+use crate::sip::{ConfigPacket, MotorSip, RobotIdentity, SipTail, SonarReading, StallBumpers};
+
+/// Substeps of the kinematics per SIP period.
+const SUBSTEPS: u32 = 10;
+
+/// Wheel slip applied to the ground-truth motion only (the encoders do not see it).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WheelSlip {
+    /// Seed of the ChaCha8 generator.
+    pub seed: u64,
+    /// Standard deviation of the per-substep relative error of each wheel's ground speed.
+    pub relative_std: f64,
+}
+
+/// Emulator settings. Durations are simulated time.
+#[derive(Debug, Clone)]
+pub struct EmulatorConfig {
+    /// Reply to SYNC2 (subclass also selects the conversion factors).
+    pub identity: RobotIdentity,
+    /// Conversion factors; `None` = chosen from the subclass as a client would.
+    pub factors: Option<ConversionFactors>,
+    /// Simulated seconds per wall second (default 1.0).
+    pub time_scale: f64,
+    /// SIP period (default 100 ms).
+    pub sip_period: Duration,
+    /// Watchdog: stop the robot when no command arrived for this long (default 2 s).
+    pub watchdog: Duration,
+    /// Distance between the wheels, mm (default 2 / DiffConvFactor ≈ 357 mm, so the
+    /// `(R − L)/2 · DiffConvFactor` rule gives back the rotational velocity).
+    pub wheel_track_mm: f64,
+    /// Translational acceleration and deceleration, mm/s² (default 300 / 300).
+    pub trans_accel: f64,
+    /// Translational deceleration, mm/s².
+    pub trans_decel: f64,
+    /// Rotational acceleration, deg/s² (default 100).
+    pub rot_accel: f64,
+    /// Rotational deceleration, deg/s² (default 100).
+    pub rot_decel: f64,
+    /// Top translational velocity, mm/s (default 2200).
+    pub trans_vel_top: f64,
+    /// Top rotational velocity, deg/s (default 500).
+    pub rot_vel_top: f64,
+    /// Battery voltage in tenths of a volt (default 125).
+    pub battery_dv: u8,
+    /// Range reported by every sonar disc when sonar is on, mm (default 5000).
+    pub sonar_range_mm: u16,
+    /// Ground truth at start.
+    pub initial_pose: Pose2,
+    /// Optional wheel slip on the ground truth.
+    pub slip: Option<WheelSlip>,
+    /// Probability (0..1) of sending 1-8 random garbage bytes before a SIP (seeded by
+    /// `noise_seed`), to exercise the client's resynchronisation.
+    pub garbage_probability: f64,
+    /// Seed for the garbage generator.
+    pub noise_seed: u64,
+}
+
+impl Default for EmulatorConfig {
+    fn default() -> Self {
+        Self {
+            identity: RobotIdentity {
+                name: "rfloc-emulator".into(),
+                class: "Pioneer".into(),
+                subclass: "p3dx-sh".into(),
+            },
+            factors: None,
+            time_scale: 1.0,
+            sip_period: Duration::from_millis(100),
+            watchdog: Duration::from_secs(2),
+            wheel_track_mm: 2.0 / ConversionFactors::P3DX_SH.diff_conv,
+            trans_accel: 300.0,
+            trans_decel: 300.0,
+            rot_accel: 100.0,
+            rot_decel: 100.0,
+            trans_vel_top: 2200.0,
+            rot_vel_top: 500.0,
+            battery_dv: 125,
+            sonar_range_mm: 5000,
+            initial_pose: Pose2::default(),
+            slip: None,
+            garbage_probability: 0.0,
+            noise_seed: 0,
+        }
+    }
+}
+
+/// What the emulator shows the outside world (the simulator and tests).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct EmulatorState {
+    /// Simulated seconds since the emulator was created.
+    pub sim_time: f64,
+    /// Ground-truth pose, metres and radians.
+    pub truth: Pose2,
+    /// The robot's own odometry (what its SIPs report), metres and radians.
+    pub odometry: Pose2,
+    /// Forward velocity, m/s.
+    pub v: f64,
+    /// Rotational velocity, rad/s.
+    pub w: f64,
+    /// A client has opened the connection.
+    pub open: bool,
+    /// Motors enabled.
+    pub motors_enabled: bool,
+    /// The watchdog has stopped the robot and no command has arrived since.
+    pub watchdog_tripped: bool,
+    /// The motion hook clipped the last step (wheels stalled).
+    pub stalled: bool,
+    /// Times the watchdog stopped the robot.
+    pub watchdog_trips: u64,
+    /// Motor SIPs sent.
+    pub sips_sent: u64,
+    /// Command frames received and understood.
+    pub commands: u64,
+    /// Commands ignored (unsupported number or malformed argument).
+    pub ignored_commands: u64,
+    /// Bytes the emulator's decoder dropped.
+    pub dropped_bytes: u64,
+}
+
+/// Read-only view of a running emulator.
+#[derive(Debug, Clone)]
+pub struct EmulatorHandle {
+    rx: watch::Receiver<EmulatorState>,
+}
+
+impl EmulatorHandle {
+    /// The latest state.
+    #[must_use]
+    pub fn state(&self) -> EmulatorState {
+        *self.rx.borrow()
+    }
+
+    /// Ground truth.
+    #[must_use]
+    pub fn truth(&self) -> Pose2 {
+        self.rx.borrow().truth
+    }
+
+    /// A receiver that is notified after every simulation step.
+    #[must_use]
+    pub fn subscribe(&self) -> watch::Receiver<EmulatorState> {
+        self.rx.clone()
+    }
+}
+
+/// Errors of [`RobotEmulator::serve`].
+#[derive(Debug, Error)]
+pub enum EmulatorError {
+    /// Reading or writing the stream failed.
+    #[error("emulator link i/o: {0}")]
+    Io(#[from] std::io::Error),
+}
+
+/// Called with (current truth, proposed truth) for every motion step; returns the truth to
+/// accept (e.g. clipped at a wall). Returning anything but the proposal counts as a stall.
+pub type MotionHook = Box<dyn FnMut(&Pose2, &Pose2) -> Pose2 + Send>;
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum RotMode {
+    /// deg/s.
+    Velocity(f64),
+    /// Target heading in the odometric frame, radians.
+    Heading(f64),
+}
+
+/// A Pioneer P3-DX: ARCOS-like command handling over differential-drive kinematics.
+pub struct RobotEmulator {
+    config: EmulatorConfig,
+    factors: ConversionFactors,
+    hook: Option<MotionHook>,
+    state_tx: watch::Sender<EmulatorState>,
+    st: EmulatorState,
+    rng: Option<(ChaCha8Rng, Normal<f64>)>,
+    garbage_rng: ChaCha8Rng,
+    // Robot state in robot units.
+    v_mm: f64,
+    w_deg: f64,
+    trans_set: f64,
+    rot_mode: RotMode,
+    wheels: Option<(f64, f64)>,
+    max_v: f64,
+    max_rv: f64,
+    accel: (f64, f64, f64, f64),
+    sonar_on: bool,
+    sonar_next: u8,
+    sync_stage: u8,
+    last_command_time: f64,
+    encoders: (f64, f64),
+    encoder_stream: bool,
+}
+
+impl std::fmt::Debug for RobotEmulator {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RobotEmulator")
+            .field("config", &self.config)
+            .field("state", &self.st)
+            .finish_non_exhaustive()
+    }
+}
+
+impl RobotEmulator {
+    /// A robot at `config.initial_pose`, waiting for a handshake.
+    #[must_use]
+    pub fn new(config: EmulatorConfig) -> Self {
+        let factors = config
+            .factors
+            .unwrap_or_else(|| ConversionFactors::for_subclass(&config.identity.subclass));
+        let st = EmulatorState {
+            truth: config.initial_pose,
+            ..EmulatorState::default()
+        };
+        let (state_tx, _) = watch::channel(st);
+        let rng = config.slip.and_then(|s| {
+            let normal = Normal::new(0.0, s.relative_std.abs()).ok()?;
+            Some((ChaCha8Rng::seed_from_u64(s.seed), normal))
+        });
+        let garbage_rng = ChaCha8Rng::seed_from_u64(config.noise_seed);
+        Self {
+            max_v: config.trans_vel_top,
+            max_rv: config.rot_vel_top,
+            accel: (
+                config.trans_accel,
+                config.trans_decel,
+                config.rot_accel,
+                config.rot_decel,
+            ),
+            config,
+            factors,
+            hook: None,
+            state_tx,
+            st,
+            rng,
+            garbage_rng,
+            v_mm: 0.0,
+            w_deg: 0.0,
+            trans_set: 0.0,
+            rot_mode: RotMode::Velocity(0.0),
+            wheels: None,
+            sonar_on: false,
+            sonar_next: 0,
+            sync_stage: 0,
+            last_command_time: 0.0,
+            encoders: (0.0, 0.0),
+            encoder_stream: false,
+        }
+    }
+
+    /// Installs a motion hook (walls, bumpers).
+    #[must_use]
+    pub fn with_motion_hook(mut self, hook: MotionHook) -> Self {
+        self.hook = Some(hook);
+        self
+    }
+
+    /// A handle to read the state (ground truth) while [`RobotEmulator::serve`] runs.
+    #[must_use]
+    pub fn handle(&self) -> EmulatorHandle {
+        EmulatorHandle {
+            rx: self.state_tx.subscribe(),
+        }
+    }
+
+    /// The conversion factors the robot reports in.
+    #[must_use]
+    pub fn factors(&self) -> ConversionFactors {
+        self.factors
+    }
+
+    /// Serves one link until it ends (end of stream: `Ok`). The robot's pose and settings
+    /// persist across calls; when a link ends the connection is closed and the robot stops.
+    ///
+    /// # Errors
+    /// [`EmulatorError::Io`] if the stream fails.
+    pub async fn serve<S>(&mut self, stream: S) -> Result<(), EmulatorError>
+    where
+        S: AsyncRead + AsyncWrite + Unpin + Send,
+    {
+        let span = tracing::info_span!("aria-emulator", robot = %self.config.identity.name);
+        let result = self.serve_inner(stream).instrument(span).await;
+        // Link gone: like a CLOSE, the robot stops.
+        self.close_connection();
+        self.v_mm = 0.0;
+        self.w_deg = 0.0;
+        self.publish();
+        result
+    }
+
+    async fn serve_inner<S>(&mut self, mut stream: S) -> Result<(), EmulatorError>
+    where
+        S: AsyncRead + AsyncWrite + Unpin + Send,
+    {
+        let scale = if self.config.time_scale.is_finite() && self.config.time_scale > 0.0 {
+            self.config.time_scale
+        } else {
+            1.0
+        };
+        let wall_period = self
+            .config
+            .sip_period
+            .div_f64(scale)
+            .max(Duration::from_micros(100));
+        let mut ticker = tokio::time::interval(wall_period);
+        ticker.set_missed_tick_behavior(MissedTickBehavior::Burst);
+        let mut decoder = FrameDecoder::new();
+        let mut buf = [0u8; 512];
+        self.sync_stage = 0;
+        loop {
+            tokio::select! {
+                r = stream.read(&mut buf) => {
+                    let n = match r {
+                        Ok(0) => return Ok(()),
+                        Ok(n) => n,
+                        Err(e) => return Err(e.into()),
+                    };
+                    decoder.push(buf.get(..n).unwrap_or_default());
+                    while let Some(r) = decoder.next_frame() {
+                        if let Ok(frame) = r {
+                            let replies = self.handle_frame(&frame);
+                            for reply in replies {
+                                if let Ok(bytes) = reply.encode() {
+                                    stream.write_all(&bytes).await?;
+                                }
+                            }
+                            stream.flush().await?;
+                        }
+                    }
+                    self.st.dropped_bytes = decoder.dropped_bytes();
+                    self.publish();
+                }
+                _ = ticker.tick() => {
+                    self.step_period();
+                    if self.st.open {
+                        let mut out = Vec::new();
+                        self.push_garbage(&mut out);
+                        if let Ok(b) = self.motor_sip().to_frame().encode() {
+                            out.extend_from_slice(&b);
+                        }
+                        if self.encoder_stream {
+                            if let Ok(b) = self.encoder_packet().encode() {
+                                out.extend_from_slice(&b);
+                            }
+                        }
+                        self.st.sips_sent += 1;
+                        stream.write_all(&out).await?;
+                        stream.flush().await?;
+                    }
+                    self.publish();
+                }
+            }
+        }
+    }
+
+    fn publish(&self) {
+        self.state_tx.send_replace(self.st);
+    }
+
+    fn push_garbage(&mut self, out: &mut Vec<u8>) {
+        let p = self.config.garbage_probability;
+        if p > 0.0 && self.garbage_rng.random_bool(p.min(1.0)) {
+            let n = self.garbage_rng.random_range(1..=8);
+            out.extend((0..n).map(|_| self.garbage_rng.random::<u8>()));
+        }
+    }
+
+    fn close_connection(&mut self) {
+        self.st.open = false;
+        self.st.motors_enabled = false;
+        self.st.watchdog_tripped = false;
+        self.sonar_on = false;
+        self.encoder_stream = false;
+        self.trans_set = 0.0;
+        self.rot_mode = RotMode::Velocity(0.0);
+        self.wheels = None;
+        self.sync_stage = 0;
+    }
+
+    /// Handles one command frame; returns the frames to send back.
+    fn handle_frame(&mut self, frame: &Frame) -> Vec<Frame> {
+        let phase = if self.st.open {
+            LinkPhase::Open
+        } else {
+            LinkPhase::Handshake
+        };
+        let cmd = match Command::from_frame(frame, phase) {
+            Ok(c) => c,
+            Err(e) => {
+                tracing::warn!(error = %e, "emulator: malformed command ignored");
+                self.st.ignored_commands += 1;
+                return Vec::new();
+            }
+        };
+        if !self.st.open {
+            return self.handle_handshake(cmd);
+        }
+        self.st.commands += 1;
+        self.last_command_time = self.st.sim_time;
+        if self.st.watchdog_tripped {
+            tracing::info!("emulator: command after watchdog stop, resuming setpoints");
+            self.st.watchdog_tripped = false;
+        }
+        let div = self.factors.vel2_divisor;
+        match cmd {
+            Command::Pulse | Command::Open => {}
+            Command::Close => {
+                tracing::info!("emulator: CLOSE");
+                self.close_connection();
+            }
+            Command::Enable(on) => self.st.motors_enabled = on,
+            Command::Vel(v) => {
+                if self.wheels.take().is_some() {
+                    self.rot_mode = RotMode::Velocity(0.0);
+                }
+                self.trans_set = f64::from(v);
+            }
+            Command::Rvel(w) => {
+                if self.wheels.take().is_some() {
+                    self.trans_set = 0.0;
+                }
+                self.rot_mode = RotMode::Velocity(f64::from(w));
+            }
+            Command::Vel2 { left, right } => {
+                self.wheels = Some((f64::from(left) * div, f64::from(right) * div));
+            }
+            Command::Head(deg) => {
+                if self.wheels.take().is_some() {
+                    self.trans_set = 0.0;
+                }
+                self.rot_mode = RotMode::Heading(wrap_angle(f64::from(deg).to_radians()));
+            }
+            Command::Dhead(deg) => {
+                if self.wheels.take().is_some() {
+                    self.trans_set = 0.0;
+                }
+                let target = self.st.odometry.theta + f64::from(deg).to_radians();
+                self.rot_mode = RotMode::Heading(wrap_angle(target));
+            }
+            Command::SetV(v) => self.max_v = f64::from(v).clamp(0.0, self.config.trans_vel_top),
+            Command::SetRv(v) => self.max_rv = f64::from(v).clamp(0.0, self.config.rot_vel_top),
+            Command::SetA(a) => match a {
+                a if a > 0 => self.accel.0 = f64::from(a),
+                a if a < 0 => self.accel.1 = -f64::from(a),
+                _ => {}
+            },
+            Command::SetRa(a) => match a {
+                a if a > 0 => self.accel.2 = f64::from(a),
+                a if a < 0 => self.accel.3 = -f64::from(a),
+                _ => {}
+            },
+            Command::Stop => {
+                self.trans_set = 0.0;
+                self.rot_mode = RotMode::Velocity(0.0);
+                self.wheels = None;
+            }
+            Command::EStop => {
+                self.trans_set = 0.0;
+                self.rot_mode = RotMode::Velocity(0.0);
+                self.wheels = None;
+                self.v_mm = 0.0;
+                self.w_deg = 0.0;
+            }
+            Command::Sonar(on) => self.sonar_on = on,
+            Command::SetO => self.st.odometry = Pose2::default(),
+            Command::Config => return vec![self.config_packet().to_frame()],
+            Command::Other {
+                number: 19,
+                arg: Arg::Int(n),
+            } => {
+                // ENCODER: 0 stop, 1 one packet, ≥ 2 continuous.
+                self.encoder_stream = n >= 2;
+                if n == 1 {
+                    return vec![self.encoder_packet()];
+                }
+            }
+            Command::Other { number, .. } if number == number::CONFIG => {
+                return vec![self.config_packet().to_frame()];
+            }
+            other => {
+                tracing::debug!(command = ?other, "emulator: command not emulated");
+                self.st.ignored_commands += 1;
+            }
+        }
+        Vec::new()
+    }
+
+    fn handle_handshake(&mut self, cmd: Command) -> Vec<Frame> {
+        match cmd {
+            Command::Sync0 => {
+                self.sync_stage = 1;
+                vec![Frame::new(0, Vec::new())]
+            }
+            Command::Sync1 if self.sync_stage == 3 => {
+                // After SYNC2, command 1 is OPEN.
+                tracing::info!("emulator: OPEN");
+                self.st.open = true;
+                self.st.motors_enabled = false;
+                self.last_command_time = self.st.sim_time;
+                Vec::new()
+            }
+            Command::Sync1 => {
+                self.sync_stage = 2;
+                vec![Frame::new(1, Vec::new())]
+            }
+            Command::Sync2 => {
+                self.sync_stage = 3;
+                vec![self.config.identity.to_frame()]
+            }
+            other => {
+                tracing::debug!(command = ?other, "emulator: command before OPEN ignored");
+                self.st.ignored_commands += 1;
+                Vec::new()
+            }
+        }
+    }
+
+    /// Advances simulated time by one SIP period.
+    fn step_period(&mut self) {
+        let period = self.config.sip_period.as_secs_f64();
+        let dt = period / f64::from(SUBSTEPS);
+        if self.st.open
+            && !self.st.watchdog_tripped
+            && self.st.sim_time - self.last_command_time > self.config.watchdog.as_secs_f64()
+        {
+            tracing::warn!("emulator: watchdog expired, stopping the robot");
+            self.st.watchdog_tripped = true;
+            self.st.watchdog_trips += 1;
+        }
+        for _ in 0..SUBSTEPS {
+            self.substep(dt);
+        }
+        self.st.sim_time += period;
+    }
+
+    fn targets(&self) -> (f64, f64) {
+        if !self.st.open || !self.st.motors_enabled || self.st.watchdog_tripped {
+            return (0.0, 0.0);
+        }
+        if let Some((l, r)) = self.wheels {
+            let v = (l + r) / 2.0;
+            let w = ((r - l) / self.config.wheel_track_mm).to_degrees();
+            return (
+                v.clamp(-self.max_v, self.max_v),
+                w.clamp(-self.max_rv, self.max_rv),
+            );
+        }
+        let v = self.trans_set.clamp(-self.max_v, self.max_v);
+        let w = match self.rot_mode {
+            RotMode::Velocity(w) => w.clamp(-self.max_rv, self.max_rv),
+            RotMode::Heading(target) => {
+                let err = wrap_angle(target - self.st.odometry.theta).to_degrees();
+                let stop_speed = (2.0 * self.accel.3 * err.abs()).sqrt();
+                let per_step =
+                    err.abs() / (self.config.sip_period.as_secs_f64() / f64::from(SUBSTEPS));
+                err.signum() * self.max_rv.min(stop_speed).min(per_step)
+            }
+        };
+        (v, w)
+    }
+
+    fn substep(&mut self, dt: f64) {
+        let (vt, wt) = self.targets();
+        self.v_mm = ramp(self.v_mm, vt, self.accel.0 * dt, self.accel.1 * dt);
+        self.w_deg = ramp(self.w_deg, wt, self.accel.2 * dt, self.accel.3 * dt);
+        let v = self.v_mm / 1000.0;
+        let w = self.w_deg.to_radians();
+        let half_track = self.config.wheel_track_mm / 2000.0;
+        let (left, right) = (v - w * half_track, v + w * half_track);
+        let nominal = arc(v * dt, w * dt);
+        // Ground truth: wheels may slip.
+        let (gl, gr) = match &mut self.rng {
+            Some((rng, normal)) => (
+                left * (1.0 + normal.sample(rng)),
+                right * (1.0 + normal.sample(rng)),
+            ),
+            None => (left, right),
+        };
+        let gv = (gl + gr) / 2.0;
+        let gw = (gr - gl) / (2.0 * half_track);
+        let proposed = self.st.truth.compose(&arc(gv * dt, gw * dt));
+        let current = self.st.truth;
+        let accepted = match &mut self.hook {
+            Some(hook) => hook(&current, &proposed),
+            None => proposed,
+        };
+        let clipped = accepted.distance(&proposed) > 1e-9
+            || wrap_angle(accepted.theta - proposed.theta).abs() > 1e-9;
+        self.st.stalled = clipped;
+        self.st.truth = accepted;
+        // Encoders: nominal wheel motion, or what the robot actually did when blocked.
+        let odo_delta = if clipped {
+            accepted.relative_to(&current)
+        } else {
+            nominal
+        };
+        self.st.odometry = self.st.odometry.compose(&odo_delta);
+        self.encoders.0 += left * dt * 1000.0;
+        self.encoders.1 += right * dt * 1000.0;
+        self.st.v = v;
+        self.st.w = w;
+    }
+
+    fn motor_sip(&mut self) -> MotorSip {
+        let f = self.factors;
+        let units = |m: f64| {
+            let u = (m * 1000.0 / f.dist_conv).round() as i64;
+            (u.rem_euclid(0x8000)) as u16
+        };
+        let half_track = self.config.wheel_track_mm / 2.0;
+        let w_rad = self.w_deg.to_radians();
+        let left = (self.v_mm - w_rad * half_track) / f.vel_conv;
+        let right = (self.v_mm + w_rad * half_track) / f.vel_conv;
+        let sat = |x: f64| x.round().clamp(f64::from(i16::MIN), f64::from(i16::MAX)) as i16;
+        let mut flags = u16::from(self.st.motors_enabled);
+        let mut sonar = Vec::new();
+        if self.sonar_on {
+            flags |= 0b1_1110;
+            for _ in 0..4 {
+                sonar.push(SonarReading {
+                    number: self.sonar_next,
+                    range: (f64::from(self.config.sonar_range_mm) / f.range_conv).round() as u16,
+                });
+                self.sonar_next = (self.sonar_next + 1) % 16;
+            }
+        }
+        let stall = if self.st.stalled { 0x0101 } else { 0 };
+        MotorSip {
+            moving: self.v_mm.abs() > 0.5 || self.w_deg.abs() > 0.05,
+            x_raw: units(self.st.odometry.x),
+            y_raw: units(self.st.odometry.y),
+            th_raw: sat(self.st.odometry.theta / f.angle_conv),
+            left_vel: sat(left),
+            right_vel: sat(right),
+            battery_dv: self.config.battery_dv,
+            stall_bumpers: StallBumpers(stall),
+            control: 0,
+            flags,
+            compass: 0,
+            sonar,
+            grip_state: 0,
+            an_port: 0,
+            analog: 0,
+            digin: 0,
+            digout: 0,
+            tail: SipTail {
+                battery_x10: Some(u16::from(self.config.battery_dv)),
+                charge_state: Some(0),
+                rot_vel: Some(sat(self.w_deg * 10.0)),
+                fault_flags: Some(0),
+                rest: Vec::new(),
+            },
+        }
+    }
+
+    fn encoder_packet(&self) -> Frame {
+        let mut p = Vec::with_capacity(8);
+        p.extend_from_slice(&(self.encoders.0.round() as i32).to_le_bytes());
+        p.extend_from_slice(&(self.encoders.1.round() as i32).to_le_bytes());
+        Frame::new(0x90, p)
+    }
+
+    fn config_packet(&self) -> ConfigPacket {
+        let c = &self.config;
+        let u16s = |x: f64| x.round().clamp(0.0, f64::from(u16::MAX)) as u16;
+        ConfigPacket {
+            class: c.identity.class.clone(),
+            subclass: c.identity.subclass.clone(),
+            serial: "EMU".into(),
+            four_motors: 0,
+            rot_vel_top: u16s(c.rot_vel_top),
+            trans_vel_top: u16s(c.trans_vel_top),
+            rot_accel_top: u16s(c.rot_accel.max(c.rot_decel)),
+            trans_accel_top: u16s(c.trans_accel.max(c.trans_decel)),
+            pwm_max: 0,
+            name: c.identity.name.clone(),
+            sip_cycle_ms: u8::try_from(c.sip_period.as_millis()).unwrap_or(u8::MAX),
+            host_baud: 0,
+            aux1_baud: 0,
+            has_gripper: 0,
+            front_sonar: 1,
+            rear_sonar: 1,
+            low_battery_dv: 110,
+            rev_count: 0,
+            watchdog_ms: u16::try_from(c.watchdog.as_millis()).unwrap_or(u16::MAX),
+            rest: Vec::new(),
+        }
+    }
+}
+
+/// Moves `current` toward `target`, by at most `up` when speeding up and `down` when slowing.
+fn ramp(current: f64, target: f64, up: f64, down: f64) -> f64 {
+    let speeding_up =
+        target.abs() > current.abs() && target.signum() == current.signum() || current == 0.0;
+    let step = if speeding_up { up } else { down };
+    if (target - current).abs() <= step {
+        target
+    } else {
+        current + step.copysign(target - current)
+    }
+}
+
+/// Relative motion along an arc of length `ds` turning by `dth` (midpoint heading).
+fn arc(ds: f64, dth: f64) -> Pose2 {
+    let half = dth / 2.0;
+    Pose2::new(ds * half.cos(), ds * half.sin(), dth)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ramp_limits_acceleration() {
+        assert_eq!(ramp(0.0, 100.0, 10.0, 20.0), 10.0);
+        assert_eq!(ramp(100.0, 0.0, 10.0, 20.0), 80.0);
+        assert_eq!(ramp(5.0, 8.0, 10.0, 20.0), 8.0);
+        assert_eq!(ramp(50.0, -50.0, 10.0, 20.0), 30.0);
+    }
+
+    #[test]
+    fn handshake_then_open() {
+        let mut e = RobotEmulator::new(EmulatorConfig::default());
+        assert_eq!(
+            e.handle_frame(&Frame::new(0, vec![])),
+            vec![Frame::new(0, vec![])]
+        );
+        assert_eq!(
+            e.handle_frame(&Frame::new(1, vec![])),
+            vec![Frame::new(1, vec![])]
+        );
+        let id = e.handle_frame(&Frame::new(2, vec![]));
+        assert_eq!(id, vec![EmulatorConfig::default().identity.to_frame()]);
+        assert!(e.handle_frame(&Frame::new(1, vec![])).is_empty());
+        assert!(e.st.open);
+        assert!(!e.st.motors_enabled);
+    }
+
+    fn opened(config: EmulatorConfig) -> RobotEmulator {
+        let mut e = RobotEmulator::new(config);
+        for id in [0, 1, 2, 1] {
+            e.handle_frame(&Frame::new(id, vec![]));
+        }
+        let enable = Command::Enable(true).to_frame(&Default::default()).unwrap();
+        e.handle_frame(&enable);
+        e
+    }
+
+    #[test]
+    fn vel_drives_straight_with_acceleration_limit() {
+        let mut e = opened(EmulatorConfig::default());
+        e.handle_frame(&Command::Vel(300).to_frame(&Default::default()).unwrap());
+        // 300 mm/s² reaches 300 mm/s after 1 s; distance then 0.15 m.
+        for _ in 0..10 {
+            e.step_period();
+        }
+        assert!((e.st.v - 0.3).abs() < 1e-9);
+        assert!((e.st.truth.x - 0.15).abs() < 0.005, "x = {}", e.st.truth.x);
+        assert_eq!(e.st.truth, e.st.odometry);
+    }
+
+    #[test]
+    fn watchdog_stops_and_command_revives() {
+        let mut e = opened(EmulatorConfig::default());
+        e.handle_frame(&Command::Vel(200).to_frame(&Default::default()).unwrap());
+        for _ in 0..25 {
+            e.step_period();
+        }
+        assert!(e.st.watchdog_tripped);
+        for _ in 0..10 {
+            e.step_period();
+        }
+        assert_eq!(e.st.v, 0.0);
+        e.handle_frame(&Command::Pulse.to_frame(&Default::default()).unwrap());
+        for _ in 0..10 {
+            e.step_period();
+        }
+        assert!(e.st.v > 0.19, "revived to the last setpoint");
+    }
+
+    #[test]
+    fn hook_clips_motion_and_reports_stall() {
+        let wall: MotionHook = Box::new(|cur, prop| if prop.x > 0.05 { *cur } else { *prop });
+        let mut e = opened(EmulatorConfig::default()).with_motion_hook(wall);
+        e.handle_frame(&Command::Vel(200).to_frame(&Default::default()).unwrap());
+        for _ in 0..20 {
+            e.step_period();
+        }
+        assert!(e.st.truth.x <= 0.05);
+        assert!(e.st.stalled);
+        assert!((e.st.odometry.x - e.st.truth.x).abs() < 1e-9);
+        assert!(e.motor_sip().stall_bumpers.left_stall());
+    }
+
+    #[test]
+    fn head_turns_to_heading() {
+        let mut e = opened(EmulatorConfig::default());
+        e.handle_frame(&Command::Head(90).to_frame(&Default::default()).unwrap());
+        for _ in 0..60 {
+            e.step_period();
+        }
+        assert!((e.st.odometry.theta - std::f64::consts::FRAC_PI_2).abs() < 0.01);
+        assert!(e.st.w.abs() < 1e-6);
+    }
+
+    #[test]
+    fn vel2_wheels_turn_in_place() {
+        let mut e = opened(EmulatorConfig::default());
+        let f = Command::Vel2 { left: -2, right: 2 }
+            .to_frame(&Default::default())
+            .unwrap();
+        e.handle_frame(&f);
+        for _ in 0..20 {
+            e.step_period();
+        }
+        // ±40 mm/s on a 357 mm track: 0.224 rad/s.
+        assert!((e.st.w - 80.0 / e.config.wheel_track_mm).abs() < 1e-9);
+        assert!(e.st.truth.x.abs() < 1e-9);
+    }
+
+    #[test]
+    fn slip_moves_truth_away_from_odometry_deterministically() {
+        let cfg = EmulatorConfig {
+            slip: Some(WheelSlip {
+                seed: 7,
+                relative_std: 0.05,
+            }),
+            ..EmulatorConfig::default()
+        };
+        let run = || {
+            let mut e = opened(cfg.clone());
+            e.handle_frame(&Command::Vel(400).to_frame(&Default::default()).unwrap());
+            for _ in 0..20 {
+                e.step_period();
+            }
+            (e.st.truth, e.st.odometry)
+        };
+        let (t1, o1) = run();
+        let (t2, _) = run();
+        assert_eq!(t1, t2);
+        assert!(t1.distance(&o1) > 1e-4);
+    }
+}
