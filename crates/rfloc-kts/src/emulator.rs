@@ -1,0 +1,297 @@
+//! A device emulator: answers AT commands and, while scanning, reports the tags of a floor
+//! grid that lie under an antenna whose position a closure supplies.
+//!
+//! RSSI follows seed 002's own emulator (Appendix A) through [`crate::rssi_table`]; the
+//! auxiliary channel is the main value moved by −1, 0 or +1 (seeded RNG), clamped to 0..7, as
+//! in the `a/b` pairs of the reference captures. A tag that was in range on the previous scan
+//! and is not now is reported once as `SCAN:-UID=…`.
+
+use std::collections::BTreeSet;
+use std::sync::Arc;
+use std::time::Duration;
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
+use tokio::task::JoinHandle;
+use tracing::Instrument;
+
+use crate::framing::{FramedLine, LineFramer};
+use crate::rssi_table::rssi_at_distance;
+use crate::uid::Uid;
+
+/// How grid tags get their UIDs (row-major order, x fastest).
+#[derive(Debug, Clone, PartialEq)]
+pub enum UidScheme {
+    /// `base + index`, printed as 16 hex digits (`base` must be a valid ISO 15693 UID).
+    Sequential { base: u64 },
+    /// One UID per tag, row-major; tags beyond the list are left out.
+    Explicit(Vec<Uid>),
+}
+
+/// A rectangular grid of floor tags.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TagGrid {
+    /// Position of the tag at row 0, column 0 (metres).
+    pub origin: (f64, f64),
+    /// Distance between neighbouring tags (metres).
+    pub pitch: f64,
+    pub rows: usize,
+    pub cols: usize,
+    pub uids: UidScheme,
+}
+
+impl TagGrid {
+    /// Seed 002's test field (§7.3, Table 9): 3×3 tags at 100 mm pitch from (0, 0), IDs
+    /// `…AE4 689 47A / 586 785 ADC / BF4 691 78D` by rows of increasing y. The UID prefix
+    /// `E00401503A5BD` is the one in Table 7.
+    #[must_use]
+    pub fn seed002_test_field() -> Self {
+        let ids = [
+            "AE4", "689", "47A", "586", "785", "ADC", "BF4", "691", "78D",
+        ];
+        let uids = ids
+            .iter()
+            .filter_map(|s| Uid::parse(&format!("E00401503A5BD{s}")).ok())
+            .collect();
+        Self {
+            origin: (0.0, 0.0),
+            pitch: 0.1,
+            rows: 3,
+            cols: 3,
+            uids: UidScheme::Explicit(uids),
+        }
+    }
+
+    /// Every tag with its position (metres).
+    #[must_use]
+    pub fn tags(&self) -> Vec<(Uid, f64, f64)> {
+        let mut out = Vec::with_capacity(self.rows * self.cols);
+        for r in 0..self.rows {
+            for c in 0..self.cols {
+                let i = r * self.cols + c;
+                let uid = match &self.uids {
+                    UidScheme::Sequential { base } => base
+                        .checked_add(i as u64)
+                        .and_then(|v| Uid::from_u64(v).ok()),
+                    UidScheme::Explicit(list) => list.get(i).cloned(),
+                };
+                if let Some(uid) = uid {
+                    #[allow(clippy::cast_precision_loss)]
+                    let (x, y) = (
+                        self.origin.0 + c as f64 * self.pitch,
+                        self.origin.1 + r as f64 * self.pitch,
+                    );
+                    out.push((uid, x, y));
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Supplies the antenna centre (metres) in the grid's frame.
+pub type AntennaPosition = Arc<dyn Fn() -> (f64, f64) + Send + Sync>;
+
+/// Emulator settings.
+#[derive(Clone)]
+pub struct EmulatorConfig {
+    pub grid: TagGrid,
+    pub antenna: AntennaPosition,
+    /// Time between scan reports (seed 002 §7.2: readings every 100 ms).
+    pub scan_period: Duration,
+    /// Speed-up: the scan period is divided by this (2.0 = twice real time).
+    pub time_scale: f64,
+    /// Probability that an in-range tag is missed on one scan.
+    pub miss_probability: f64,
+    /// RNG seed (misses and auxiliary RSSI).
+    pub seed: u64,
+    /// Identification lines answered to `ATI` (the emulator's own, not the module's).
+    pub ident: Vec<String>,
+}
+
+impl std::fmt::Debug for EmulatorConfig {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("EmulatorConfig")
+            .field("grid", &self.grid)
+            .field("scan_period", &self.scan_period)
+            .field("time_scale", &self.time_scale)
+            .field("miss_probability", &self.miss_probability)
+            .field("seed", &self.seed)
+            .finish_non_exhaustive()
+    }
+}
+
+impl EmulatorConfig {
+    /// Defaults around a grid and an antenna: 100 ms period, real time, no misses, seed 0.
+    #[must_use]
+    pub fn new(grid: TagGrid, antenna: AntennaPosition) -> Self {
+        Self {
+            grid,
+            antenna,
+            scan_period: Duration::from_millis(100),
+            time_scale: 1.0,
+            miss_probability: 0.0,
+            seed: 0,
+            ident: vec![
+                "rfloc KTS RFIDM1356 emulator".to_string(),
+                "S/N 0000000001".to_string(),
+            ],
+        }
+    }
+}
+
+/// The emulated reader.
+#[derive(Debug)]
+pub struct KtsEmulator {
+    config: EmulatorConfig,
+    tags: Vec<(Uid, f64, f64)>,
+    rng: ChaCha8Rng,
+    scanning: bool,
+    echo: bool,
+    in_field: BTreeSet<Uid>,
+}
+
+impl KtsEmulator {
+    #[must_use]
+    pub fn new(config: EmulatorConfig) -> Self {
+        let tags = config.grid.tags();
+        let rng = ChaCha8Rng::seed_from_u64(config.seed);
+        Self {
+            config,
+            tags,
+            rng,
+            scanning: false,
+            echo: false,
+            in_field: BTreeSet::new(),
+        }
+    }
+
+    /// Serves `io` in a new task.
+    pub fn spawn<T>(self, io: T) -> JoinHandle<std::io::Result<()>>
+    where
+        T: AsyncRead + AsyncWrite + Unpin + Send + 'static,
+    {
+        tokio::spawn(
+            self.serve(io)
+                .instrument(tracing::info_span!("kts-emulator")),
+        )
+    }
+
+    /// Serves `io` until it closes.
+    ///
+    /// # Errors
+    /// I/O errors of the stream.
+    pub async fn serve<T>(mut self, io: T) -> std::io::Result<()>
+    where
+        T: AsyncRead + AsyncWrite + Unpin + Send,
+    {
+        let (mut rd, mut wr) = tokio::io::split(io);
+        let mut framer = LineFramer::new();
+        let mut buf = [0u8; 256];
+        let scale = if self.config.time_scale.is_finite() && self.config.time_scale > 0.0 {
+            self.config.time_scale
+        } else {
+            1.0
+        };
+        let period = self
+            .config
+            .scan_period
+            .div_f64(scale)
+            .max(Duration::from_micros(100));
+        let mut ticker = tokio::time::interval(period);
+        ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        loop {
+            tokio::select! {
+                n = rd.read(&mut buf) => {
+                    let n = n?;
+                    if n == 0 {
+                        return Ok(());
+                    }
+                    for line in framer.push(buf.get(..n).unwrap_or_default()) {
+                        let reply = match line {
+                            FramedLine::Line(b) => self.answer(&String::from_utf8_lossy(&b)),
+                            FramedLine::Overlong(_) => "ERROR\r\n".to_string(),
+                        };
+                        wr.write_all(reply.as_bytes()).await?;
+                        wr.flush().await?;
+                    }
+                }
+                _ = ticker.tick(), if self.scanning => {
+                    let report = self.scan_report();
+                    if !report.is_empty() {
+                        wr.write_all(report.as_bytes()).await?;
+                        wr.flush().await?;
+                    }
+                }
+            }
+        }
+    }
+
+    /// The reply to one command line.
+    fn answer(&mut self, line: &str) -> String {
+        let cmd = line.trim();
+        let mut out = String::new();
+        if self.echo {
+            out.push_str(cmd);
+            out.push_str("\r\n");
+        }
+        let upper = cmd.to_ascii_uppercase();
+        let ok = match upper.as_str() {
+            "AT" => true,
+            "ATI" => {
+                for l in &self.config.ident {
+                    out.push_str(l);
+                    out.push_str("\r\n");
+                }
+                true
+            }
+            "ATE0" => {
+                self.echo = false;
+                true
+            }
+            "ATE1" => {
+                self.echo = true;
+                true
+            }
+            _ => match upper.strip_prefix("AT+SCAN=") {
+                Some("0" | "OFF") => {
+                    self.scanning = false;
+                    self.in_field.clear();
+                    true
+                }
+                Some(mode) if mode.split(',').any(|m| m.trim() == "AC") => {
+                    self.scanning = true;
+                    true
+                }
+                _ => false,
+            },
+        };
+        out.push_str(if ok { "OK\r\n" } else { "ERROR\r\n" });
+        out
+    }
+
+    /// One scan: `SCAN:+UID` for tags in range (minus misses), `SCAN:-UID` for tags that left.
+    fn scan_report(&mut self) -> String {
+        let (ax, ay) = (self.config.antenna)();
+        let mut out = String::new();
+        let mut now_in = BTreeSet::new();
+        for (uid, x, y) in &self.tags {
+            let d_cm = ((x - ax).powi(2) + (y - ay).powi(2)).sqrt() * 100.0;
+            let Some(main) = rssi_at_distance(d_cm) else {
+                continue;
+            };
+            now_in.insert(uid.clone());
+            if self.rng.random::<f64>() < self.config.miss_probability {
+                continue;
+            }
+            let aux = (i32::from(main) + self.rng.random_range(-1..=1)).clamp(0, 7);
+            out.push_str(&format!("SCAN:+UID={uid},+RSSI={main}/{aux}\r\n"));
+        }
+        for gone in self.in_field.difference(&now_in) {
+            out.push_str(&format!("SCAN:-UID={gone}\r\n"));
+        }
+        self.in_field = now_in;
+        out
+    }
+}
