@@ -1,0 +1,23 @@
+//! UHF RFID snapshot localisation, clustering, MDP value iteration and navigation (pure, no I/O
+//! except the atomic save/load of the learned database in [`store`]).
+#![forbid(unsafe_code)]
+
+pub mod action;
+pub mod cluster;
+pub mod distance;
+pub mod error;
+pub mod explore;
+pub mod snapshot;
+pub mod tag;
+pub mod transition;
+pub mod value_iteration;
+
+pub use action::{integrate, Action, ActionTable, MotionCommand};
+pub use cluster::{ClusterCount, Clustering, ClusteringMethod};
+pub use distance::{DissimilarityMatrix, SnapshotDistance};
+pub use error::SnapshotError;
+pub use explore::{ExplorationConfig, ExplorationInput, ExplorationPolicy};
+pub use snapshot::{AverageConfig, AverageTagSet, Snapshot};
+pub use tag::TagId;
+pub use transition::{TransitionCounts, TransitionModel, TransitionPrior, TransitionRow};
+pub use value_iteration::{q_values, value_iteration, ValueIterationConfig, ValueIterationResult};
