@@ -288,7 +288,7 @@ fn cases() -> Vec<Case> {
     );
 
     // Generated frames, every kind, both modes; a few with the checksum broken.
-    let mut rng = Rng(0x5EED_0F_0C0DEC);
+    let mut rng = Rng(0x5EED_0F0C_0DEC);
     for i in 0..600 {
         let kind = i % 12;
         let frame = random_frame(&mut rng, kind);
