@@ -451,3 +451,141 @@ fn db_value_to_dbm(command: AtCommandName, data: &[u8]) -> Result<Option<f64>, X
         }),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::codec::encode_frame;
+    use crate::frame::ModemStatus;
+    use tokio::io::{duplex, DuplexStream};
+
+    fn client(io: DuplexStream) -> XBeeClient<DuplexStream> {
+        XBeeClient::new(
+            io,
+            ClientConfig {
+                response_timeout: Duration::from_millis(200),
+                ..ClientConfig::default()
+            },
+        )
+    }
+
+    fn wire(frame: &Frame) -> Vec<u8> {
+        frame.encode(ApiMode::Escaped).unwrap()
+    }
+
+    /// Reads one request frame from the device side.
+    async fn read_request(device: &mut DuplexStream) -> Frame {
+        let mut decoder = FrameDecoder::new(ApiMode::Escaped);
+        let mut buf = [0u8; 64];
+        loop {
+            if let Some(Ok(data)) = decoder.next_frame() {
+                return Frame::parse(&data).unwrap();
+            }
+            let n = device.read(&mut buf).await.unwrap();
+            decoder.push(&buf[..n]);
+        }
+    }
+
+    #[tokio::test]
+    async fn response_found_among_noise_stray_and_unsolicited_frames() {
+        let (host, mut device) = duplex(1024);
+        let mut client = client(host);
+        let peer = tokio::spawn(async move {
+            let Frame::AtCommand(request) = read_request(&mut device).await else {
+                panic!("expected an AT command")
+            };
+            let mut out = vec![0x00, 0x13, 0x55]; // line noise
+            out.extend(wire(&Frame::ModemStatus(ModemStatus { status: 6 })));
+            out.extend(wire(&Frame::AtResponse(AtResponse {
+                frame_id: request.frame_id.wrapping_add(7),
+                command: AtCommandName::DB,
+                status_byte: 0,
+                data: vec![0x40],
+            })));
+            out.extend(encode_frame(&[0x88, 0x01], ApiMode::Escaped).unwrap()); // too short
+            out.extend(wire(&Frame::AtResponse(AtResponse {
+                frame_id: request.frame_id,
+                command: AtCommandName::DB,
+                status_byte: 0,
+                data: vec![0x50],
+            })));
+            device.write_all(&out).await.unwrap();
+            device
+        });
+        assert_eq!(client.local_rssi().await.unwrap(), Some(-80.0));
+        let stats = client.stats();
+        assert_eq!(stats.decode.dropped_bytes, 3);
+        assert_eq!((stats.stray_responses, stats.malformed_frames), (1, 1));
+        assert_eq!(
+            client.take_unsolicited(),
+            vec![Frame::ModemStatus(ModemStatus { status: 6 })]
+        );
+        drop(peer.await.unwrap());
+    }
+
+    #[tokio::test]
+    async fn silent_device_times_out_and_closed_stream_is_reported() {
+        let (host, device) = duplex(1024);
+        let mut client = client(host);
+        let err = client.at_command(AtCommandName::NT, &[]).await.unwrap_err();
+        assert!(
+            matches!(
+                err,
+                XBeeError::Timeout {
+                    command: AtCommandName::NT,
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        drop(device);
+        let err = client.at_command(AtCommandName::NT, &[]).await.unwrap_err();
+        assert!(matches!(err, XBeeError::Closed | XBeeError::Io(_)), "{err}");
+    }
+
+    #[tokio::test]
+    async fn nd_error_status_is_an_error_and_db_of_two_bytes_is_rejected() {
+        let (host, mut device) = duplex(1024);
+        let mut client = client(host);
+        let peer = tokio::spawn(async move {
+            for (status_byte, data) in [(1u8, vec![]), (0, vec![0x00, 0x50])] {
+                let request = read_request(&mut device).await;
+                let Frame::AtCommand(c) = request else {
+                    panic!("expected an AT command")
+                };
+                let reply = Frame::AtResponse(AtResponse {
+                    frame_id: c.frame_id,
+                    command: c.command,
+                    status_byte,
+                    data,
+                });
+                device.write_all(&wire(&reply)).await.unwrap();
+            }
+            device
+        });
+        let err = client.discover().await.unwrap_err();
+        assert!(
+            matches!(
+                err,
+                XBeeError::Status {
+                    status: AtStatus::Error,
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        let err = client.local_rssi().await.unwrap_err();
+        assert!(matches!(err, XBeeError::BadValue { .. }), "{err}");
+        drop(peer.await.unwrap());
+    }
+
+    #[test]
+    fn frame_ids_skip_zero() {
+        let (host, _device) = duplex(16);
+        let mut client = client(host);
+        let ids: Vec<u8> = (0..512).map(|_| client.allocate_frame_id()).collect();
+        assert!(!ids.contains(&0));
+        assert_eq!(ids[254], 255);
+        assert_eq!(ids[255], 1);
+    }
+}
