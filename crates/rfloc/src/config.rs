@@ -1,0 +1,586 @@
+//! Per-robot configuration: strict TOML with errors that name the file, line and key.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use rfloc_transport::LinkConfig;
+use serde::Deserialize;
+
+/// The whole robot file.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotConfig {
+    pub robot: RobotSection,
+    #[serde(default, rename = "device")]
+    pub devices: Vec<DeviceConfig>,
+    pub estimator: EstimatorConfig,
+    #[serde(default)]
+    pub pose: PoseOutputConfig,
+    #[serde(default)]
+    pub log: LogConfig,
+    #[serde(default)]
+    pub state: StateConfig,
+    /// Present in simulation configs: devices are emulated on ptys and loopback sockets.
+    pub simulation: Option<SimulationConfig>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotSection {
+    pub name: String,
+    #[serde(default = "default_frame")]
+    pub frame_id: String,
+    #[serde(default = "default_child_frame")]
+    pub child_frame_id: String,
+}
+
+fn default_frame() -> String {
+    "map".into()
+}
+fn default_child_frame() -> String {
+    "base_link".into()
+}
+
+/// One device: a name, how to reach it, and its driver settings.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DeviceConfig {
+    pub name: String,
+    /// Absent only in simulation configs, where the daemon attaches an emulator.
+    pub link: Option<LinkConfig>,
+    /// Seconds without data before the device counts as stale and poses degrade.
+    #[serde(default = "default_stale_after")]
+    pub stale_after_s: f64,
+    pub driver: DriverConfig,
+}
+
+fn default_stale_after() -> f64 {
+    3.0
+}
+
+/// Driver settings, tagged by `kind`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum DriverConfig {
+    Aria(AriaSettings),
+    Kts(KtsSettings),
+    Alien(AlienSettings),
+    Xbee(XbeeSettings),
+    Stepper(StepperSettings),
+}
+
+impl DriverConfig {
+    #[must_use]
+    pub fn kind(&self) -> &'static str {
+        match self {
+            DriverConfig::Aria(_) => "aria",
+            DriverConfig::Kts(_) => "kts",
+            DriverConfig::Alien(_) => "alien",
+            DriverConfig::Xbee(_) => "xbee",
+            DriverConfig::Stepper(_) => "stepper",
+        }
+    }
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AriaSettings {
+    /// Seconds without a command before a PULSE keeps the robot's watchdog fed.
+    #[serde(default = "default_pulse")]
+    pub pulse_period_s: f64,
+}
+fn default_pulse() -> f64 {
+    1.0
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct KtsSettings {
+    #[serde(default = "default_scan_command")]
+    pub scan_command: String,
+    /// Seconds of silence after which the client sends `AT` and restarts scanning.
+    #[serde(default = "default_silence")]
+    pub resync_after_s: f64,
+}
+fn default_scan_command() -> String {
+    "AT+Scan=AC,RSSI".into()
+}
+fn default_silence() -> f64 {
+    2.0
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AlienSettings {
+    #[serde(default = "default_alien_user")]
+    pub username: String,
+    /// File holding the password (first line). Relative paths are taken from
+    /// `$CREDENTIALS_DIRECTORY` first (systemd `LoadCredential=`), then the config's folder.
+    pub password_file: Option<PathBuf>,
+    /// Reads averaged into one snapshot.
+    #[serde(default = "default_reads")]
+    pub reads_per_snapshot: u32,
+}
+fn default_alien_user() -> String {
+    "alien".into()
+}
+fn default_reads() -> u32 {
+    3
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct XbeeSettings {
+    /// 1 (unescaped) or 2 (escaped).
+    #[serde(default = "default_api_mode")]
+    pub api_mode: u8,
+    /// Node discovery timeout in seconds (`NT`).
+    #[serde(default = "default_nt")]
+    pub discovery_timeout_s: f64,
+}
+fn default_api_mode() -> u8 {
+    2
+}
+fn default_nt() -> f64 {
+    2.0
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StepperSettings {
+    pub chip: String,
+    pub step_line: String,
+    pub dir_line: String,
+    pub enable_line: Option<String>,
+    pub steps_per_rev: u32,
+    #[serde(default = "default_gear")]
+    pub gear_ratio: f64,
+}
+fn default_gear() -> f64 {
+    1.0
+}
+
+/// Which estimator pipeline runs, with its parameters.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(tag = "pipeline", rename_all = "lowercase", deny_unknown_fields)]
+pub enum EstimatorConfig {
+    /// Wheel odometry only (no absolute fix): pose mode is `degraded`.
+    Odometry,
+    /// HF floor grid: initial pose from a 360° turn, then tracking.
+    Hfgrid(HfGridSettings),
+}
+
+impl EstimatorConfig {
+    #[must_use]
+    pub fn name(&self) -> &'static str {
+        match self {
+            EstimatorConfig::Odometry => "odometry",
+            EstimatorConfig::Hfgrid(_) => "hfgrid",
+        }
+    }
+
+    /// Driver kinds this pipeline needs.
+    #[must_use]
+    pub fn required_drivers(&self) -> &'static [&'static str] {
+        match self {
+            EstimatorConfig::Odometry => &["aria"],
+            EstimatorConfig::Hfgrid(_) => &["kts"],
+        }
+    }
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HfGridSettings {
+    /// Tag pitch in metres (seed 002: 0.10).
+    #[serde(default = "default_pitch")]
+    pub pitch_m: f64,
+    /// Antenna offset behind the robot centre in metres (seed 002: 0.10).
+    #[serde(default = "default_offset")]
+    pub antenna_offset_m: f64,
+    /// Tag table: UID (hex) → grid position in metres.
+    #[serde(default, rename = "tag")]
+    pub tags: Vec<GridTag>,
+}
+fn default_pitch() -> f64 {
+    0.10
+}
+fn default_offset() -> f64 {
+    0.10
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GridTag {
+    pub uid: String,
+    pub x: f64,
+    pub y: f64,
+}
+
+/// Where poses go.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PoseOutputConfig {
+    /// TCP listen address for JSON lines (None: no TCP server).
+    #[serde(default = "default_pose_tcp")]
+    pub tcp: Option<String>,
+    /// Unix socket path for JSON lines.
+    pub unix: Option<PathBuf>,
+    /// Also print each pose as a JSON line on stdout.
+    #[serde(default)]
+    pub stdout: bool,
+    /// Fraction digits for metres (radians get two more).
+    #[serde(default = "default_precision")]
+    pub precision: usize,
+    /// Per-client queue length before a slow client is dropped.
+    #[serde(default = "default_client_queue")]
+    pub client_queue: usize,
+}
+
+fn default_pose_tcp() -> Option<String> {
+    Some("127.0.0.1:2948".into())
+}
+fn default_precision() -> usize {
+    4
+}
+fn default_client_queue() -> usize {
+    64
+}
+
+impl Default for PoseOutputConfig {
+    fn default() -> Self {
+        Self {
+            tcp: default_pose_tcp(),
+            unix: None,
+            stdout: false,
+            precision: default_precision(),
+            client_queue: default_client_queue(),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LogConfig {
+    /// `error`, `warn`, `info`, `debug`, `trace`, or a tracing filter directive.
+    #[serde(default = "default_level")]
+    pub level: String,
+    /// `text` (journald-friendly, no colours, no timestamps under systemd) or `full`.
+    #[serde(default = "default_format")]
+    pub format: String,
+}
+fn default_level() -> String {
+    "info".into()
+}
+fn default_format() -> String {
+    "text".into()
+}
+impl Default for LogConfig {
+    fn default() -> Self {
+        Self { level: default_level(), format: default_format() }
+    }
+}
+
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StateConfig {
+    /// Folder for learned maps and persisted state (systemd `StateDirectory=`).
+    pub dir: Option<PathBuf>,
+    /// Folder to record captures of every device link into (`record` sets it too).
+    pub capture_dir: Option<PathBuf>,
+}
+
+/// Simulation section: the daemon starts emulators and attaches devices to them.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimulationConfig {
+    /// Simulated seconds per wall second.
+    #[serde(default = "default_time_scale")]
+    pub time_scale: f64,
+    /// Seed for every random source of the simulation.
+    #[serde(default)]
+    pub seed: u64,
+    /// Simulated seconds to run (None: until stopped).
+    pub duration_s: Option<f64>,
+    /// Motion script the daemon drives: `turn` (360° in place, then stop) or `square`.
+    #[serde(default = "default_motion")]
+    pub motion: String,
+    /// Start pose of the simulated robot (metres, degrees).
+    #[serde(default)]
+    pub start: [f64; 3],
+}
+fn default_time_scale() -> f64 {
+    1.0
+}
+fn default_motion() -> String {
+    "turn".into()
+}
+
+/// A configuration error, formatted as `file:line:column: key `a.b`: message`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ConfigError {
+    pub file: String,
+    pub line: Option<usize>,
+    pub column: Option<usize>,
+    pub key: Option<String>,
+    pub message: String,
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.file)?;
+        if let Some(l) = self.line {
+            write!(f, ":{l}")?;
+            if let Some(c) = self.column {
+                write!(f, ":{c}")?;
+            }
+        }
+        write!(f, ": ")?;
+        if let Some(k) = &self.key {
+            write!(f, "key `{k}`: ")?;
+        }
+        write!(f, "{}", self.message)
+    }
+}
+
+impl std::error::Error for ConfigError {}
+
+impl RobotConfig {
+    /// Reads, parses and checks a robot file.
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| ConfigError {
+            file: file.clone(),
+            line: None,
+            column: None,
+            key: None,
+            message: format!("cannot read: {e}"),
+        })?;
+        let cfg = Self::parse(&text, &file)?;
+        cfg.check(&text, &file, path.parent())?;
+        Ok(cfg)
+    }
+
+    /// Parses TOML text; errors carry line, column and the key at the error.
+    pub fn parse(text: &str, file: &str) -> Result<Self, ConfigError> {
+        toml::from_str::<RobotConfig>(text).map_err(|e| {
+            let (line, column, key) = match e.span() {
+                Some(span) => locate(text, span.start),
+                None => (None, None, None),
+            };
+            ConfigError { file: file.to_string(), line, column, key, message: e.message().trim().to_string() }
+        })
+    }
+
+    /// Semantic checks that TOML types cannot express.
+    pub fn check(&self, text: &str, file: &str, base: Option<&Path>) -> Result<(), ConfigError> {
+        let err = |key: &str, message: String| {
+            let (line, column) = find_key(text, key.rsplit('.').next().unwrap_or(key));
+            ConfigError { file: file.to_string(), line, column, key: Some(key.to_string()), message }
+        };
+        let mut names = std::collections::HashSet::new();
+        for (i, d) in self.devices.iter().enumerate() {
+            if !names.insert(d.name.as_str()) {
+                return Err(err(&format!("device[{i}].name"), format!("duplicate device name {:?}", d.name)));
+            }
+            if !(d.stale_after_s.is_finite() && d.stale_after_s > 0.0) {
+                return Err(err(&format!("device[{i}].stale_after_s"), "must be a positive number of seconds".into()));
+            }
+            match (&d.link, &self.simulation) {
+                (None, None) => {
+                    return Err(err(
+                        &format!("device[{i}].link"),
+                        format!("device {:?} has no link (only simulation configs may omit it)", d.name),
+                    ))
+                }
+                (Some(LinkConfig::Serial(s)), None) => {
+                    if !Path::new(&s.path).exists() {
+                        return Err(err(
+                            &format!("device[{i}].link.path"),
+                            format!("serial device {} does not exist", s.path),
+                        ));
+                    }
+                }
+                (Some(LinkConfig::Tcp(t)), _) => {
+                    if !t.address.contains(':') {
+                        return Err(err(&format!("device[{i}].link.address"), format!("{:?} is not host:port", t.address)));
+                    }
+                }
+                _ => {}
+            }
+            if let DriverConfig::Alien(a) = &d.driver {
+                if let Some(p) = &a.password_file {
+                    if resolve_credential(p, base).is_none() {
+                        return Err(err(
+                            &format!("device[{i}].driver.password_file"),
+                            format!("password file {} not found (looked in $CREDENTIALS_DIRECTORY and next to the config)", p.display()),
+                        ));
+                    }
+                }
+            }
+            if let DriverConfig::Xbee(x) = &d.driver {
+                if !matches!(x.api_mode, 1 | 2) {
+                    return Err(err(&format!("device[{i}].driver.api_mode"), "must be 1 or 2".into()));
+                }
+            }
+        }
+        for need in self.estimator.required_drivers() {
+            if !self.devices.iter().any(|d| d.driver.kind() == *need) {
+                return Err(err(
+                    "estimator.pipeline",
+                    format!("pipeline {:?} needs a device with driver kind {:?}", self.estimator.name(), need),
+                ));
+            }
+        }
+        if let Some(addr) = &self.pose.tcp {
+            if addr.parse::<std::net::SocketAddr>().is_err() {
+                return Err(err("pose.tcp", format!("{addr:?} is not an ip:port address")));
+            }
+        }
+        if let Some(sim) = &self.simulation {
+            if !(sim.time_scale.is_finite() && sim.time_scale > 0.0 && sim.time_scale <= 1000.0) {
+                return Err(err("simulation.time_scale", "must be in (0, 1000]".into()));
+            }
+            if !matches!(sim.motion.as_str(), "turn" | "square" | "still") {
+                return Err(err("simulation.motion", format!("{:?} is not one of turn, square, still", sim.motion)));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Finds a credential file: `$CREDENTIALS_DIRECTORY/<name>` first, then relative to the config.
+#[must_use]
+pub fn resolve_credential(path: &Path, base: Option<&Path>) -> Option<PathBuf> {
+    if path.is_absolute() {
+        return path.exists().then(|| path.to_path_buf());
+    }
+    if let Some(dir) = std::env::var_os("CREDENTIALS_DIRECTORY") {
+        let p = Path::new(&dir).join(path);
+        if p.exists() {
+            return Some(p);
+        }
+    }
+    let p = base.map_or_else(|| path.to_path_buf(), |b| b.join(path));
+    p.exists().then_some(p)
+}
+
+/// Line, column (1-based) and dotted key at a byte offset of TOML text.
+fn locate(text: &str, offset: usize) -> (Option<usize>, Option<usize>, Option<String>) {
+    let before = text.get(..offset.min(text.len())).unwrap_or(text);
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(1, |l| l.chars().count() + 1);
+    let mut table = String::new();
+    let mut device_index: Option<usize> = None;
+    let mut devices_seen = 0usize;
+    for l in before.lines() {
+        let t = l.trim();
+        if t.starts_with("[[") {
+            table = t.trim_matches(|c| c == '[' || c == ']').trim().to_string();
+            if table == "device" {
+                device_index = Some(devices_seen);
+                devices_seen += 1;
+            }
+        } else if t.starts_with('[') {
+            table = t.trim_matches(|c| c == '[' || c == ']').trim().to_string();
+            if table.starts_with("device.") {
+                // A sub-table of the current device.
+            }
+        }
+    }
+    let current_line = text.lines().nth(line - 1).unwrap_or("");
+    let key_here = current_line.split_once('=').map(|(k, _)| k.trim().to_string()).filter(|k| !k.starts_with('['));
+    let mut parts = Vec::new();
+    if !table.is_empty() {
+        let t = match (device_index, table.strip_prefix("device")) {
+            (Some(i), Some(rest)) => format!("device[{i}]{rest}"),
+            _ => table,
+        };
+        parts.push(t);
+    }
+    if let Some(k) = key_here {
+        parts.push(k);
+    }
+    let key = (!parts.is_empty()).then(|| parts.join("."));
+    (Some(line), Some(column), key)
+}
+
+/// Line and column of the first `key =` in the text.
+fn find_key(text: &str, key: &str) -> (Option<usize>, Option<usize>) {
+    let bare = key.split('[').next().unwrap_or(key);
+    for (i, l) in text.lines().enumerate() {
+        if let Some((k, _)) = l.split_once('=') {
+            if k.trim() == bare {
+                let col = l.len() - l.trim_start().len() + 1;
+                return (Some(i + 1), Some(col));
+            }
+        }
+    }
+    (None, None)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = r#"
+[robot]
+name = "agv-1"
+
+[[device]]
+name = "hf"
+link = { kind = "tcp", address = "127.0.0.1:9000" }
+[device.driver]
+kind = "kts"
+
+[estimator]
+pipeline = "hfgrid"
+"#;
+
+    #[test]
+    fn good_config_parses_and_checks() {
+        let cfg = RobotConfig::parse(GOOD, "good.toml").unwrap();
+        cfg.check(GOOD, "good.toml", None).unwrap();
+        assert_eq!(cfg.devices.len(), 1);
+        assert_eq!(cfg.pose.tcp.as_deref(), Some("127.0.0.1:2948"));
+    }
+
+    #[test]
+    fn unknown_key_names_file_line_and_key() {
+        let text = GOOD.replace("kind = \"kts\"", "kind = \"kts\"\nscan_rate = 3");
+        let e = RobotConfig::parse(&text, "bad.toml").unwrap_err();
+        let s = e.to_string();
+        assert!(s.starts_with("bad.toml:10:"), "{s}");
+        assert!(s.contains("scan_rate"), "{s}");
+        assert_eq!(e.key.as_deref(), Some("device[0].driver.scan_rate"));
+    }
+
+    #[test]
+    fn wrong_type_names_the_key() {
+        let text = GOOD.replace("name = \"agv-1\"", "name = 7");
+        let e = RobotConfig::parse(&text, "bad.toml").unwrap_err();
+        assert_eq!(e.line, Some(3));
+        assert_eq!(e.key.as_deref(), Some("robot.name"));
+        assert!(e.message.contains("invalid type"), "{e}");
+    }
+
+    #[test]
+    fn missing_serial_path_is_a_semantic_error() {
+        let text = GOOD.replace(
+            "link = { kind = \"tcp\", address = \"127.0.0.1:9000\" }",
+            "link = { kind = \"serial\", path = \"/dev/rfloc-does-not-exist\", baud = 115200 }",
+        );
+        let cfg = RobotConfig::parse(&text, "bad.toml").unwrap();
+        let e = cfg.check(&text, "bad.toml", None).unwrap_err();
+        assert_eq!(e.line, Some(7));
+        assert!(e.to_string().contains("/dev/rfloc-does-not-exist"), "{e}");
+    }
+
+    #[test]
+    fn pipeline_without_its_device_is_rejected() {
+        let text = GOOD.replace("pipeline = \"hfgrid\"", "pipeline = \"odometry\"");
+        let cfg = RobotConfig::parse(&text, "bad.toml").unwrap();
+        let e = cfg.check(&text, "bad.toml", None).unwrap_err();
+        assert!(e.to_string().contains("needs a device with driver kind \"aria\""), "{e}");
+    }
+}

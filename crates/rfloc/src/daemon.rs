@@ -1,0 +1,301 @@
+//! `rfloc run`: device tasks under one cancellation token, the estimator loop, the pose stream,
+//! and systemd notifications.
+
+use std::collections::HashMap;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::{Duration, SystemTime};
+
+use anyhow::Context;
+use rfloc_capture::Header;
+use rfloc_pose::EstimateMode;
+use rfloc_transport::{open, CaptureSink, LinkConfig, MonotonicClock, Recorder, SharedClock, Transport};
+use tokio::sync::mpsc;
+use tokio_util::sync::CancellationToken;
+use tracing::Instrument;
+
+use crate::config::{DeviceConfig, DriverConfig, RobotConfig};
+use crate::devices;
+use crate::events::DeviceEvent;
+use crate::message::{self, DeviceState, PoseFormat};
+use crate::notify;
+use crate::pipeline;
+use crate::server::{bind_unix, PoseHub};
+
+/// Options of one run that do not come from the robot file.
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    pub stdout: bool,
+    pub capture_dir: Option<PathBuf>,
+}
+
+/// Everything a device task needs from the daemon.
+#[derive(Clone)]
+pub struct DeviceContext {
+    pub device: DeviceConfig,
+    pub events: mpsc::Sender<DeviceEvent>,
+    pub stop: CancellationToken,
+    pub clock: SharedClock,
+    pub capture_dir: Option<PathBuf>,
+    /// Simulated seconds per wall second (1 on a real robot).
+    pub time_scale: f64,
+}
+
+impl DeviceContext {
+    /// Opens the device's link, wrapped in a recorder when capturing. The only place the daemon
+    /// opens links.
+    pub async fn open_link(&self) -> anyhow::Result<Transport> {
+        let link = self
+            .device
+            .link
+            .as_ref()
+            .with_context(|| format!("device {:?} has no link", self.device.name))?;
+        let io = open(link).await?;
+        match &self.capture_dir {
+            None => Ok(io),
+            Some(dir) => {
+                let device_kind = capture_device_name(&self.device.driver);
+                let mut header = Header::new(device_kind, link.describe());
+                header.started = Some(message::iso8601(SystemTime::now()).replace(".000Z", "Z"));
+                header.notes.push(format!("device {} recorded by rfloc {}", self.device.name, env!("CARGO_PKG_VERSION")));
+                let path = dir.join(format!("{}.cap", self.device.name));
+                let sink = CaptureSink::create(&path, &header, Arc::clone(&self.clock))?;
+                Ok(Box::new(Recorder::new(io, sink)))
+            }
+        }
+    }
+
+    /// Sends a status event (never blocks the device task for long).
+    pub async fn status(&self, state: DeviceState, detail: impl Into<String>) {
+        let _ = self
+            .events
+            .send(DeviceEvent::Status {
+                device: self.device.name.clone(),
+                driver: self.device.driver.kind(),
+                state,
+                detail: detail.into(),
+            })
+            .await;
+    }
+}
+
+fn capture_device_name(driver: &DriverConfig) -> &'static str {
+    match driver {
+        DriverConfig::Aria(_) => "pioneer-aria",
+        DriverConfig::Kts(_) => "kts-rfidm1356",
+        DriverConfig::Alien(_) => "alien-alr9900",
+        DriverConfig::Xbee(x) => {
+            if x.api_mode == 1 {
+                "xbee-api1"
+            } else {
+                "xbee-api2"
+            }
+        }
+        DriverConfig::Stepper(_) => "stepper-gpio",
+    }
+}
+
+/// Back-off for reconnecting: 0.5 s doubling to 30 s.
+#[must_use]
+pub fn backoff(attempt: u32) -> Duration {
+    let secs = 0.5 * 2f64.powi(i32::try_from(attempt.min(6)).unwrap_or(6));
+    Duration::from_secs_f64(secs.min(30.0))
+}
+
+/// Runs until SIGTERM/SIGINT (or the simulation's duration).
+pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
+    let stop = CancellationToken::new();
+    spawn_signal_handler(stop.clone());
+    let clock: SharedClock = Arc::new(MonotonicClock::new());
+    let capture_dir = opts.capture_dir.clone().or_else(|| cfg.state.capture_dir.clone());
+    if let Some(dir) = &capture_dir {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating capture folder {}", dir.display()))?;
+    }
+
+    // Pose stream.
+    let hub = PoseHub::new(cfg.pose.client_queue);
+    let mut servers = Vec::new();
+    if let Some(addr) = &cfg.pose.tcp {
+        let listener = tokio::net::TcpListener::bind(addr).await.with_context(|| format!("binding pose stream on {addr}"))?;
+        tracing::info!(address = %listener.local_addr()?, "pose stream (tcp)");
+        servers.push(tokio::spawn(hub.clone().serve_tcp(listener, stop.clone())));
+    }
+    if let Some(path) = &cfg.pose.unix {
+        let listener = bind_unix(path).with_context(|| format!("binding pose stream on {}", path.display()))?;
+        tracing::info!(path = %path.display(), "pose stream (unix)");
+        servers.push(tokio::spawn(hub.clone().serve_unix(listener, path.clone(), stop.clone())));
+    }
+
+    // Simulation: emulators on ptys/loopback; device links are rewritten to reach them.
+    let mut cfg = cfg;
+    let mut sim = None;
+    if let Some(sim_cfg) = cfg.simulation.clone() {
+        sim = Some(crate::sim::start(&mut cfg, &sim_cfg, stop.clone()).await?);
+    }
+    let time_scale = cfg.simulation.as_ref().map_or(1.0, |s| s.time_scale);
+
+    // Device tasks.
+    let (ev_tx, mut ev_rx) = mpsc::channel::<DeviceEvent>(1024);
+    let mut device_tasks = Vec::new();
+    let mut motion = None;
+    for device in &cfg.devices {
+        let ctx = DeviceContext {
+            device: device.clone(),
+            events: ev_tx.clone(),
+            stop: stop.clone(),
+            clock: Arc::clone(&clock),
+            capture_dir: capture_dir.clone(),
+            time_scale,
+        };
+        let span = tracing::info_span!("device", name = %device.name, driver = device.driver.kind());
+        let (task, handle) = devices::spawn(ctx, span.clone());
+        if handle.is_some() {
+            motion = handle;
+        }
+        device_tasks.push(task);
+    }
+    drop(ev_tx);
+
+    if let (Some(sim), Some(base)) = (&sim, &motion) {
+        crate::sim::drive(sim, base.clone(), stop.clone());
+    }
+
+    notify::ready();
+    notify::status(&format!("running pipeline {}", cfg.estimator.name()));
+    tracing::info!(robot = %cfg.robot.name, pipeline = cfg.estimator.name(), devices = cfg.devices.len(), "rfloc running");
+
+    let fmt = PoseFormat {
+        frame_id: cfg.robot.frame_id.clone(),
+        child_frame_id: cfg.robot.child_frame_id.clone(),
+        precision: cfg.pose.precision,
+    };
+    let mut estimator = pipeline::build(&cfg.estimator);
+    let stale_after: HashMap<String, Duration> = cfg
+        .devices
+        .iter()
+        .map(|d| (d.name.clone(), Duration::from_secs_f64(d.stale_after_s / time_scale.max(1e-6))))
+        .collect();
+    let mut last_seen: HashMap<String, tokio::time::Instant> = HashMap::new();
+    let mut stale: HashMap<String, bool> = HashMap::new();
+    let watchdog = notify::watchdog_period().unwrap_or(Duration::from_secs(1));
+    let mut tick = tokio::time::interval(watchdog.min(Duration::from_millis(500)));
+    let mut non_finite = 0u64;
+    let deadline = cfg
+        .simulation
+        .as_ref()
+        .and_then(|s| s.duration_s)
+        .map(|d| tokio::time::Instant::now() + Duration::from_secs_f64(d / time_scale.max(1e-6)));
+
+    let estimator_span = tracing::info_span!("estimator", pipeline = cfg.estimator.name());
+    async {
+        loop {
+            let event = tokio::select! {
+                () = stop.cancelled() => break,
+                () = sleep_until_opt(deadline) => {
+                    tracing::info!("simulation duration reached");
+                    stop.cancel();
+                    break;
+                }
+                _ = tick.tick() => {
+                    notify::watchdog();
+                    let now = tokio::time::Instant::now();
+                    for (name, limit) in &stale_after {
+                        let is_stale = last_seen.get(name).is_some_and(|t| now.duration_since(*t) > *limit);
+                        let was = stale.insert(name.clone(), is_stale).unwrap_or(false);
+                        if is_stale && !was {
+                            tracing::warn!(device = %name, "device silent; poses degrade");
+                            let driver = cfg.devices.iter().find(|d| &d.name == name).map_or("?", |d| d.driver.kind());
+                            hub.publish_device(name, message::device_json(name, driver, DeviceState::Stale, &format!("silent for more than {:.1} s", limit.as_secs_f64()), SystemTime::now()));
+                        }
+                    }
+                    continue;
+                }
+                e = ev_rx.recv() => match e { Some(e) => e, None => break },
+            };
+            if let DeviceEvent::Status { device, driver, state, detail } = &event {
+                tracing::info!(device = %device, state = state.as_str(), detail = %detail, "device status");
+                hub.publish_device(device, message::device_json(device, driver, *state, detail, SystemTime::now()));
+                continue;
+            }
+            let name = event.device().to_string();
+            last_seen.insert(name.clone(), tokio::time::Instant::now());
+            if stale.insert(name.clone(), false) == Some(true) {
+                let driver = cfg.devices.iter().find(|d| d.name == name).map_or("?", |d| d.driver.kind());
+                hub.publish_device(&name, message::device_json(&name, driver, DeviceState::Connected, "data again", SystemTime::now()));
+            }
+            if let Some(mut est) = estimator.handle(&event) {
+                if stale.values().any(|s| *s) && est.mode == EstimateMode::Fix {
+                    est.mode = EstimateMode::Degraded;
+                }
+                match message::pose_json(&est, SystemTime::now(), &fmt) {
+                    Ok(line) => {
+                        if (opts.stdout || cfg.pose.stdout) && !print_line(&line) {
+                            // stdout closed (e.g. piped into `head`): stop printing, keep running.
+                            opts.stdout = false;
+                            cfg.pose.stdout = false;
+                        }
+                        hub.publish_pose(line);
+                    }
+                    Err(e) => {
+                        non_finite += 1;
+                        tracing::warn!(error = %e, count = non_finite, "estimate not published");
+                    }
+                }
+            }
+        }
+    }
+    .instrument(estimator_span)
+    .await;
+
+    notify::stopping();
+    tracing::info!("stopping: halting the robot and closing devices");
+    stop.cancel();
+    for t in device_tasks {
+        if tokio::time::timeout(Duration::from_secs(5), t).await.is_err() {
+            tracing::warn!("a device task did not stop within 5 s");
+        }
+    }
+    if let Some(sim) = sim {
+        sim.shutdown().await;
+    }
+    for s in servers {
+        let _ = tokio::time::timeout(Duration::from_secs(1), s).await;
+    }
+    tracing::info!("stopped");
+    Ok(())
+}
+
+/// Prints one line on stdout; false when stdout is gone.
+fn print_line(line: &str) -> bool {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    writeln!(out, "{line}").and_then(|()| out.flush()).is_ok()
+}
+
+async fn sleep_until_opt(deadline: Option<tokio::time::Instant>) {
+    match deadline {
+        Some(d) => tokio::time::sleep_until(d).await,
+        None => std::future::pending().await,
+    }
+}
+
+fn spawn_signal_handler(stop: CancellationToken) {
+    tokio::spawn(async move {
+        let term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate());
+        let Ok(mut term) = term else {
+            tracing::error!("cannot install SIGTERM handler");
+            return;
+        };
+        tokio::select! {
+            _ = term.recv() => tracing::info!("SIGTERM"),
+            _ = tokio::signal::ctrl_c() => tracing::info!("SIGINT"),
+        }
+        stop.cancel();
+    });
+}
+
+/// Link description for logs.
+#[must_use]
+pub fn describe_link(link: Option<&LinkConfig>) -> String {
+    link.map_or_else(|| "emulated".into(), LinkConfig::describe)
+}

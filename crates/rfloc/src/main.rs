@@ -1,0 +1,168 @@
+//! `rfloc`: the rfloc localisation daemon and its tools.
+#![forbid(unsafe_code)]
+
+mod config;
+mod daemon;
+mod devices;
+mod events;
+mod message;
+mod notify;
+mod pipeline;
+mod replay;
+mod server;
+mod sim;
+mod watch;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+/// Exit status for configuration errors (sysexits EX_CONFIG).
+const EX_CONFIG: u8 = 78;
+
+#[derive(Debug, Parser)]
+#[command(name = "rfloc", version, about = "Radio-based robot localisation daemon")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Run the daemon with a robot configuration.
+    Run {
+        #[arg(short, long)]
+        config: PathBuf,
+        /// Print each pose as a JSON line on stdout as well.
+        #[arg(long)]
+        stdout: bool,
+    },
+    /// Check a robot configuration and exit (78 on error).
+    Validate {
+        #[arg(short, long)]
+        config: PathBuf,
+    },
+    /// Run the pipeline on captured device logs and print poses as JSON lines.
+    Replay {
+        /// A capture folder (one .cap per device, optional truth.csv).
+        dir: PathBuf,
+        /// Pipeline to run (default: chosen from the devices in the folder).
+        #[arg(long)]
+        pipeline: Option<String>,
+        /// Robot configuration supplying pipeline parameters.
+        #[arg(short, long)]
+        config: Option<PathBuf>,
+    },
+    /// Run the daemon and record a capture of every device link into a folder.
+    Record {
+        #[arg(short, long)]
+        config: PathBuf,
+        #[arg(short, long)]
+        out: PathBuf,
+    },
+    /// Print the pose stream of a running daemon.
+    Watch {
+        /// TCP address of the pose stream.
+        #[arg(long, default_value = "127.0.0.1:2948")]
+        tcp: String,
+        /// Unix socket of the pose stream (instead of TCP).
+        #[arg(long)]
+        unix: Option<PathBuf>,
+        /// Print raw JSON lines.
+        #[arg(long)]
+        raw: bool,
+        /// Exit after this many poses.
+        #[arg(long)]
+        count: Option<usize>,
+    },
+}
+
+fn init_logging(level: &str) {
+    use tracing_subscriber::EnvFilter;
+    let filter = EnvFilter::try_from_env("RFLOC_LOG").unwrap_or_else(|_| EnvFilter::new(level));
+    // Under systemd the journal adds its own timestamps and does not want colours.
+    let journald = std::env::var_os("JOURNAL_STREAM").is_some();
+    let builder = tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).with_ansi(false);
+    if journald {
+        builder.without_time().init();
+    } else {
+        builder.init();
+    }
+}
+
+fn load_config(path: &std::path::Path) -> Result<config::RobotConfig, ExitCode> {
+    config::RobotConfig::load(path).map_err(|e| {
+        eprintln!("rfloc: configuration error: {e}");
+        ExitCode::from(EX_CONFIG)
+    })
+}
+
+fn runtime() -> std::io::Result<tokio::runtime::Runtime> {
+    tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Validate { config } => match load_config(&config) {
+            Ok(cfg) => {
+                println!(
+                    "{}: ok (robot {:?}, {} device(s), pipeline {})",
+                    config.display(),
+                    cfg.robot.name,
+                    cfg.devices.len(),
+                    cfg.estimator.name()
+                );
+                ExitCode::SUCCESS
+            }
+            Err(code) => code,
+        },
+        Command::Run { config, stdout } => {
+            let cfg = match load_config(&config) {
+                Ok(c) => c,
+                Err(code) => return code,
+            };
+            init_logging(&cfg.log.level);
+            run_async(daemon::run(cfg, daemon::RunOptions { stdout, capture_dir: None }))
+        }
+        Command::Record { config, out } => {
+            let cfg = match load_config(&config) {
+                Ok(c) => c,
+                Err(code) => return code,
+            };
+            init_logging(&cfg.log.level);
+            run_async(daemon::run(cfg, daemon::RunOptions { stdout: false, capture_dir: Some(out) }))
+        }
+        Command::Replay { dir, pipeline, config } => {
+            init_logging("warn");
+            let cfg = match config.map(|c| load_config(&c)).transpose() {
+                Ok(c) => c,
+                Err(code) => return code,
+            };
+            run_async(replay::replay_dir(dir, pipeline, cfg))
+        }
+        Command::Watch { tcp, unix, raw, count } => {
+            init_logging("warn");
+            let endpoint = unix.map_or(watch::Endpoint::Tcp(tcp), watch::Endpoint::Unix);
+            run_async(watch::watch(endpoint, raw, count))
+        }
+    }
+}
+
+fn run_async(fut: impl std::future::Future<Output = anyhow::Result<()>>) -> ExitCode {
+    let rt = match runtime() {
+        Ok(rt) => rt,
+        Err(e) => {
+            eprintln!("rfloc: cannot start runtime: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    match rt.block_on(fut) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("rfloc: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

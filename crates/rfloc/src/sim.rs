@@ -1,0 +1,157 @@
+//! Simulation inside `rfloc run`: emulated devices on real pseudo-terminals, a motion script.
+//!
+//! Each serial device of a simulation config gets a pty pair: the emulator serves the master
+//! side and the device's `link` is set to the slave's path, so the daemon opens it through the
+//! same `open()` as on a robot. The HF reader's antenna follows the emulated robot's true pose.
+
+use std::f64::consts::PI;
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::Context;
+use rfloc_aria::{EmulatorConfig as RobotEmulatorConfig, EmulatorHandle, RobotEmulator};
+use rfloc_kts::{EmulatorConfig as KtsEmulatorConfig, KtsEmulator, TagGrid};
+use rfloc_pose::Pose2;
+use rfloc_transport::{LinkConfig, SerialLink};
+use tokio::task::JoinHandle;
+use tokio_serial::{SerialPort, SerialStream};
+use tokio_util::sync::CancellationToken;
+
+use crate::config::{DriverConfig, EstimatorConfig, RobotConfig, SimulationConfig};
+use crate::devices::MotionSender;
+
+/// Running emulators of one simulation.
+pub struct SimRuntime {
+    base: Option<EmulatorHandle>,
+    tasks: Vec<JoinHandle<()>>,
+    /// Slave ends kept open so the masters never see a hang-up between daemon reconnects.
+    _slaves: Vec<SerialStream>,
+    config: SimulationConfig,
+}
+
+impl SimRuntime {
+    /// The emulated robot's true pose, if there is a base.
+    #[must_use]
+    pub fn truth(&self) -> Option<Pose2> {
+        self.base.as_ref().map(EmulatorHandle::truth)
+    }
+
+    /// Stops the emulators.
+    pub async fn shutdown(self) {
+        if let Some(t) = self.truth() {
+            tracing::info!(x = t.x, y = t.y, theta = t.theta, "simulated robot final true pose");
+        }
+        for t in self.tasks {
+            t.abort();
+        }
+    }
+}
+
+fn pty_link(baud: u32) -> anyhow::Result<(SerialStream, SerialStream, LinkConfig)> {
+    let (master, slave) = SerialStream::pair().context("creating a pseudo-terminal pair")?;
+    let path = slave.name().context("pseudo-terminal has no name")?;
+    let link = LinkConfig::Serial(SerialLink {
+        path,
+        baud,
+        data_bits: Default::default(),
+        parity: Default::default(),
+        stop_bits: Default::default(),
+        flow_control: Default::default(),
+    });
+    Ok((master, slave, link))
+}
+
+/// Starts an emulator for every device and points the device links at them.
+pub async fn start(cfg: &mut RobotConfig, sim: &SimulationConfig, stop: CancellationToken) -> anyhow::Result<SimRuntime> {
+    let mut runtime = SimRuntime { base: None, tasks: Vec::new(), _slaves: Vec::new(), config: sim.clone() };
+    let start = Pose2::new(sim.start[0], sim.start[1], sim.start[2].to_radians());
+    let antenna_offset = match &cfg.estimator {
+        EstimatorConfig::Hfgrid(h) => h.antenna_offset_m,
+        EstimatorConfig::Odometry => 0.0,
+    };
+    // The base first: other emulators follow its true pose.
+    for device in cfg.devices.iter_mut().filter(|d| matches!(d.driver, DriverConfig::Aria(_))) {
+        let (master, slave, link) = pty_link(9600)?;
+        let mut emulator = RobotEmulator::new(RobotEmulatorConfig {
+            time_scale: sim.time_scale,
+            initial_pose: start,
+            noise_seed: sim.seed,
+            ..RobotEmulatorConfig::default()
+        });
+        runtime.base = Some(emulator.handle());
+        let stop = stop.clone();
+        runtime.tasks.push(tokio::spawn(async move {
+            tokio::select! {
+                () = stop.cancelled() => {}
+                r = emulator.serve(master) => if let Err(e) = r { tracing::warn!(error = %e, "robot emulator ended") },
+            }
+        }));
+        tracing::info!(device = %device.name, link = %link.describe(), "emulated Pioneer on a pty");
+        device.link = Some(link);
+        runtime._slaves.push(slave);
+    }
+    for device in cfg.devices.iter_mut().filter(|d| matches!(d.driver, DriverConfig::Kts(_))) {
+        let (master, slave, link) = pty_link(115_200)?;
+        let base = runtime.base.clone();
+        // Antenna behind the robot centre (seed 002: 10 cm), following the true pose.
+        let antenna = Arc::new(move || {
+            let p = base.as_ref().map_or(start, EmulatorHandle::truth);
+            p.transform_point(-antenna_offset, 0.0)
+        });
+        let mut kcfg = KtsEmulatorConfig::new(TagGrid::seed002_test_field(), antenna);
+        kcfg.time_scale = sim.time_scale;
+        kcfg.seed = sim.seed;
+        kcfg.miss_probability = 0.1;
+        let emulator = KtsEmulator::new(kcfg);
+        let stop = stop.clone();
+        runtime.tasks.push(tokio::spawn(async move {
+            tokio::select! {
+                () = stop.cancelled() => {}
+                r = emulator.serve(master) => if let Err(e) = r { tracing::warn!(error = %e, "HF reader emulator ended") },
+            }
+        }));
+        tracing::info!(device = %device.name, link = %link.describe(), "emulated KTS reader on a pty");
+        device.link = Some(link);
+        runtime._slaves.push(slave);
+    }
+    for device in &cfg.devices {
+        if device.link.is_none() {
+            anyhow::bail!("simulation has no emulator for device {:?} (driver {})", device.name, device.driver.kind());
+        }
+    }
+    Ok(runtime)
+}
+
+/// Drives the base through the configured motion script (in simulated time).
+pub fn drive(sim: &SimRuntime, base: MotionSender, stop: CancellationToken) {
+    let scale = sim.config.time_scale.max(1e-6);
+    let motion = sim.config.motion.clone();
+    tokio::spawn(async move {
+        let wall = |sim_s: f64| Duration::from_secs_f64(sim_s / scale);
+        let send = |v: f64, w: f64| {
+            let base = base.clone();
+            async move {
+                let _ = base.send((v, w)).await;
+            }
+        };
+        // Let the devices connect.
+        tokio::select! { () = stop.cancelled() => return, () = tokio::time::sleep(wall(2.0)) => {} }
+        let steps: Vec<(f64, f64, f64)> = match motion.as_str() {
+            // Eight 45° turns with a pause at each stop, as seed 002's initialisation.
+            "turn" => (0..8).flat_map(|_| [(0.0, PI / 8.0, 2.0), (0.0, 0.0, 1.0)]).collect(),
+            "square" => (0..4).flat_map(|_| [(0.2, 0.0, 5.0), (0.0, PI / 8.0, 4.0)]).collect(),
+            _ => Vec::new(),
+        };
+        for (v, w, secs) in steps {
+            // Re-send every simulated 0.5 s so the robot's watchdog stays fed.
+            let mut left = secs;
+            while left > 1e-9 {
+                send(v, w).await;
+                let dt = left.min(0.5);
+                tokio::select! { () = stop.cancelled() => return, () = tokio::time::sleep(wall(dt)) => {} }
+                left -= dt;
+            }
+        }
+        send(0.0, 0.0).await;
+    });
+}
