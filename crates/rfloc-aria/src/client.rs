@@ -158,6 +158,9 @@ pub struct ClientConfig {
     pub factors: Option<ConversionFactors>,
     /// Time source for [`Odometry::time`] (default: monotonic time since the client started).
     pub clock: Option<SharedClock>,
+    /// Keep the link open this long after CLOSE before dropping it, so the robot reads the
+    /// CLOSE (ARIA waits 1 s after CLOSE; a pty discards unread bytes when its peer closes).
+    pub close_linger: Duration,
     /// Size of the command queue.
     pub queue: usize,
 }
@@ -175,6 +178,7 @@ impl Default for ClientConfig {
             limits: CommandLimits::P3DX,
             factors: None,
             clock: None,
+            close_linger: Duration::from_secs(1),
             queue: 32,
         }
     }
@@ -191,6 +195,7 @@ impl ClientConfig {
             self.sync_timeout = s(self.sync_timeout);
             self.link_timeout = s(self.link_timeout);
             self.reconnect_delay = s(self.reconnect_delay);
+            self.close_linger = s(self.close_linger);
         }
         self
     }
@@ -825,6 +830,7 @@ impl Worker {
                     let Some(req) = req else {
                         // Every handle dropped: stop the robot as on shutdown.
                         let _ = close(&mut s, &limits).await;
+                        tokio::time::sleep(self.config.close_linger).await;
                         return SessionEnd::Shutdown;
                     };
                     match req {
@@ -849,6 +855,7 @@ impl Worker {
                         },
                         Request::Shutdown(reply) => {
                             let r = close(&mut s, &limits).await;
+                            tokio::time::sleep(self.config.close_linger).await;
                             let _ = reply.send(r);
                             return SessionEnd::Shutdown;
                         }

@@ -139,6 +139,10 @@ pub struct EmulatorState {
     pub ignored_commands: u64,
     /// Bytes the emulator's decoder dropped.
     pub dropped_bytes: u64,
+    /// OPEN commands accepted (connections made).
+    pub opens: u64,
+    /// CLOSE commands received.
+    pub closes: u64,
 }
 
 /// Read-only view of a running emulator.
@@ -291,7 +295,10 @@ impl RobotEmulator {
     }
 
     /// Serves one link until it ends (end of stream: `Ok`). The robot's pose and settings
-    /// persist across calls; when a link ends the connection is closed and the robot stops.
+    /// persist across calls. When a link ends without CLOSE the robot stays open (as a real
+    /// controller does when its cable is pulled) but is stopped, as its watchdog would do; no
+    /// time passes between links. The next link then receives SIPs straight away, and its client
+    /// must CLOSE and handshake again.
     ///
     /// # Errors
     /// [`EmulatorError::Io`] if the stream fails.
@@ -301,11 +308,7 @@ impl RobotEmulator {
     {
         let span = tracing::info_span!("aria-emulator", robot = %self.config.identity.name);
         let result = self.serve_inner(stream).instrument(span).await;
-        // Link gone: like a CLOSE, the robot stops.
-        self.close_connection();
-        self.v_mm = 0.0;
-        self.w_deg = 0.0;
-        self.publish();
+        self.link_ended();
         result
     }
 
@@ -327,6 +330,8 @@ impl RobotEmulator {
         ticker.set_missed_tick_behavior(MissedTickBehavior::Burst);
         let mut decoder = FrameDecoder::new();
         let mut buf = [0u8; 512];
+        // An earlier link may have been dropped mid-session (task aborted).
+        self.link_ended();
         self.sync_stage = 0;
         loop {
             tokio::select! {
@@ -372,6 +377,19 @@ impl RobotEmulator {
                 }
             }
         }
+    }
+
+    /// The link is gone: stop at once; an open connection stays open with its watchdog tripped.
+    fn link_ended(&mut self) {
+        self.v_mm = 0.0;
+        self.w_deg = 0.0;
+        self.st.v = 0.0;
+        self.st.w = 0.0;
+        if self.st.open && !self.st.watchdog_tripped {
+            self.st.watchdog_tripped = true;
+            self.st.watchdog_trips += 1;
+        }
+        self.publish();
     }
 
     fn publish(&self) {
@@ -427,6 +445,7 @@ impl RobotEmulator {
             Command::Pulse | Command::Open => {}
             Command::Close => {
                 tracing::info!("emulator: CLOSE");
+                self.st.closes += 1;
                 self.close_connection();
             }
             Command::Enable(on) => self.st.motors_enabled = on,
@@ -516,6 +535,7 @@ impl RobotEmulator {
                 // After SYNC2, command 1 is OPEN.
                 tracing::info!("emulator: OPEN");
                 self.st.open = true;
+                self.st.opens += 1;
                 self.st.motors_enabled = false;
                 self.last_command_time = self.st.sim_time;
                 Vec::new()

@@ -1,0 +1,358 @@
+//! Client against emulator through a real pseudo-terminal pair (`SerialStream::pair`).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use rfloc_aria::{
+    AriaClient, ClientConfig, ClientError, ConnectFuture, EmulatorConfig, EmulatorHandle,
+    LinkState, MobileBase, Odometry, RobotEmulator,
+};
+use rfloc_pose::{angle_diff, Pose2};
+use tokio::sync::{watch, Mutex};
+use tokio::task::JoinHandle;
+use tokio_serial::SerialStream;
+
+/// Simulated seconds per wall second in these tests.
+const SCALE: f64 = 20.0;
+
+fn emulator_config() -> EmulatorConfig {
+    EmulatorConfig {
+        time_scale: SCALE,
+        ..EmulatorConfig::default()
+    }
+}
+
+fn client_config() -> ClientConfig {
+    ClientConfig::default().scaled(SCALE)
+}
+
+/// Starts an emulator on one end of a pty pair and returns the other end.
+fn spawn_emulator(
+    config: EmulatorConfig,
+) -> (SerialStream, EmulatorHandle, JoinHandle<RobotEmulator>) {
+    let (host, robot) = SerialStream::pair().expect("pty pair");
+    let mut emu = RobotEmulator::new(config);
+    let handle = emu.handle();
+    let task = tokio::spawn(async move {
+        emu.serve(robot).await.expect("emulator serve");
+        emu
+    });
+    (host, handle, task)
+}
+
+async fn wait_odometry(
+    rx: &mut watch::Receiver<Odometry>,
+    what: &str,
+    f: impl FnMut(&Odometry) -> bool,
+) -> Odometry {
+    tokio::time::timeout(Duration::from_secs(10), rx.wait_for(f))
+        .await
+        .unwrap_or_else(|_| panic!("timed out waiting for {what}"))
+        .map(|o| *o)
+        .expect("odometry channel closed")
+}
+
+/// Waits for a few fresh SIPs with the robot standing still.
+async fn wait_still(rx: &mut watch::Receiver<Odometry>) -> Odometry {
+    let mut still = 0;
+    loop {
+        let seq = rx.borrow().seq;
+        let o = wait_odometry(rx, "next SIP", |o| o.seq > seq).await;
+        if o.v.abs() < 1e-9 && o.w.abs() < 1e-9 {
+            still += 1;
+            if still >= 3 {
+                return o;
+            }
+        } else {
+            still = 0;
+        }
+    }
+}
+
+/// Drives one 1 m side and a 90° left turn with velocity commands and odometry feedback.
+async fn drive_side(client: &AriaClient, rx: &mut watch::Receiver<Odometry>, side: f64) {
+    let start = rx.borrow().pose;
+    let speed = 0.3;
+    // Stop early by the braking distance v²/(2·0.3 m/s²) = 0.15 m.
+    let brake = speed * speed / (2.0 * 0.3);
+    client.set_velocity(speed, 0.0).await.unwrap();
+    wait_odometry(rx, "side", |o| o.pose.distance(&start) >= side - brake).await;
+    client.stop().await.unwrap();
+    let stopped = wait_still(rx).await;
+    let heading0 = stopped.pose.theta;
+    let target = heading0 + std::f64::consts::FRAC_PI_2;
+    // Turn at 30 deg/s; braking angle w²/(2·100 deg/s²) = 4.5°.
+    let w = 30f64.to_radians();
+    let brake_angle = (30.0f64 * 30.0 / 200.0).to_radians();
+    client.set_velocity(0.0, w).await.unwrap();
+    wait_odometry(rx, "turn", |o| {
+        angle_diff(target, o.pose.theta) <= brake_angle
+    })
+    .await;
+    client.stop().await.unwrap();
+    wait_still(rx).await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn square_closes_on_emulator_truth() {
+    let (host, emu, task) = spawn_emulator(emulator_config());
+    let client = AriaClient::from_stream(host, client_config())
+        .await
+        .unwrap();
+    assert_eq!(client.identity().subclass, "p3dx-sh");
+    let mut rx = client.odometry();
+    wait_odometry(&mut rx, "first SIP", |o| o.seq > 0 && o.motors_enabled).await;
+    for _ in 0..4 {
+        drive_side(&client, &mut rx, 1.0).await;
+        eprintln!("side: {:?} truth {:?}", rx.borrow().pose, emu.truth());
+    }
+    let odo = wait_still(&mut rx).await;
+    let truth = emu.truth();
+    let err = odo.pose.distance(&truth);
+    let err_th = angle_diff(odo.pose.theta, truth.theta).abs();
+    let closure = truth.distance(&Pose2::default());
+    eprintln!(
+        "square: odometry {:?} truth {:?} | odo-truth {:.4} m {:.5} rad | truth closure {:.4} m",
+        odo.pose, truth, err, err_th, closure
+    );
+    assert!(err < 0.01, "odometry vs truth {err} m");
+    assert!(err_th < 0.005, "heading vs truth {err_th} rad");
+    // It was a square: back near the start, facing the start heading.
+    assert!(closure < 0.10, "square did not close: {closure} m");
+    assert!(angle_diff(truth.theta, 0.0).abs() < 0.1);
+    let state = emu.state();
+    eprintln!("square: emulator {state:?}");
+    assert_eq!(state.watchdog_trips, 0);
+    let stats = client.stats();
+    assert_eq!(stats.dropped_bytes, 0);
+    assert_eq!(stats.bad_checksums, 0);
+    client.shutdown().await.unwrap();
+    let emu_after = task.await.unwrap();
+    let final_state = emu_after.handle().state();
+    assert!(!final_state.open, "CLOSE received");
+    assert_eq!(final_state.v, 0.0);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn emulator_stops_robot_when_client_stops_pulsing() {
+    let (host, emu, _task) = spawn_emulator(emulator_config());
+    let config = ClientConfig {
+        // Far longer than the 2 s (simulated) watchdog.
+        pulse_period: Duration::from_secs(60),
+        ..client_config()
+    };
+    let client = AriaClient::from_stream(host, config).await.unwrap();
+    let mut rx = client.odometry();
+    client.set_velocity(0.2, 0.0).await.unwrap();
+    wait_odometry(&mut rx, "moving", |o| o.v > 0.19).await;
+    let mut st = emu.subscribe();
+    let tripped = tokio::time::timeout(Duration::from_secs(5), st.wait_for(|s| s.watchdog_tripped))
+        .await
+        .expect("watchdog did not trip")
+        .unwrap()
+        .sim_time;
+    // The robot decelerates to a stop and the client sees it.
+    let o = wait_odometry(&mut rx, "stopped", |o| o.v == 0.0).await;
+    let stopped_at = emu.state();
+    assert!(stopped_at.watchdog_tripped);
+    assert_eq!(stopped_at.watchdog_trips, 1);
+    assert!(
+        tripped >= 2.0,
+        "watchdog tripped after {tripped} s simulated"
+    );
+    // Still standing a while later (no command), SIPs keep flowing.
+    let later = wait_odometry(&mut rx, "later SIPs", |x| x.seq > o.seq + 10).await;
+    assert!(later.pose.distance(&o.pose) < 1e-9);
+    // A command revives the robot to its last setpoint, as ARCOS does.
+    client.send(rfloc_aria::Command::Pulse).await.unwrap();
+    wait_odometry(&mut rx, "revived", |o| o.v > 0.19).await;
+    client.shutdown().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn pulses_keep_an_idle_robot_alive() {
+    let (host, emu, _task) = spawn_emulator(emulator_config());
+    let client = AriaClient::from_stream(host, client_config())
+        .await
+        .unwrap();
+    let mut rx = client.odometry();
+    client.set_velocity(0.1, 0.0).await.unwrap();
+    // 6 s simulated without any command from the caller.
+    let s0 = rx.borrow().seq;
+    wait_odometry(&mut rx, "6 s of SIPs", |o| o.seq > s0 + 60).await;
+    let state = emu.state();
+    assert_eq!(state.watchdog_trips, 0);
+    assert!((state.v - 0.1).abs() < 1e-9);
+    assert!(
+        client.stats().pulses >= 4,
+        "pulses: {}",
+        client.stats().pulses
+    );
+    client.shutdown().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn resyncs_on_line_noise_and_skips_unknown_packets() {
+    let config = EmulatorConfig {
+        garbage_probability: 0.3,
+        noise_seed: 42,
+        ..emulator_config()
+    };
+    let (host, emu, _task) = spawn_emulator(config);
+    let client = AriaClient::from_stream(host, client_config())
+        .await
+        .unwrap();
+    let mut rx = client.odometry();
+    // ENCODER 2: continuous encoder packets (type 0x90), which the client does not interpret.
+    client
+        .send(rfloc_aria::Command::Other {
+            number: 19,
+            arg: rfloc_aria::Arg::Int(2),
+        })
+        .await
+        .unwrap();
+    client.set_velocity(0.25, 0.2).await.unwrap();
+    let s0 = rx.borrow().seq;
+    wait_odometry(&mut rx, "40 SIPs", |o| o.seq > s0 + 40).await;
+    client.stop().await.unwrap();
+    let odo = wait_still(&mut rx).await;
+    let truth = emu.truth();
+    let stats = client.stats();
+    eprintln!(
+        "noise: {stats:?}, odo-truth {:.5} m",
+        odo.pose.distance(&truth)
+    );
+    assert!(stats.dropped_bytes > 0, "garbage was injected");
+    assert!(stats.unknown_packets > 10);
+    assert!(odo.pose.distance(&truth) < 0.005);
+    client.shutdown().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn config_request_and_wheel_velocities() {
+    let (host, emu, _task) = spawn_emulator(emulator_config());
+    let client = AriaClient::from_stream(host, client_config())
+        .await
+        .unwrap();
+    let cfg = client.request_config(Duration::from_secs(2)).await.unwrap();
+    assert_eq!(cfg.subclass, "p3dx-sh");
+    assert_eq!(cfg.watchdog_ms, 2000);
+    assert_eq!(cfg.sip_cycle_ms, 100);
+    let mut rx = client.odometry();
+    // VEL2: left 0.2 m/s, right 0.4 m/s (10 and 20 units of 20 mm/s).
+    client.set_wheel_velocities(0.2, 0.4).await.unwrap();
+    let o = wait_odometry(&mut rx, "wheels", |o| (o.v - 0.3).abs() < 1e-9).await;
+    let track = EmulatorConfig::default().wheel_track_mm / 1000.0;
+    assert!((o.w - 0.2 / track).abs() < 0.01, "w = {}", o.w);
+    assert!((emu.state().v - 0.3).abs() < 1e-9);
+    client.shutdown().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn reconnects_after_the_link_drops() {
+    let emu = Arc::new(Mutex::new(RobotEmulator::new(emulator_config())));
+    let handle = emu.lock().await.handle();
+    let serving: Arc<std::sync::Mutex<Option<JoinHandle<()>>>> = Arc::default();
+    let connector = {
+        let emu = Arc::clone(&emu);
+        let serving = Arc::clone(&serving);
+        move || -> ConnectFuture<SerialStream> {
+            let emu = Arc::clone(&emu);
+            let serving = Arc::clone(&serving);
+            Box::pin(async move {
+                let (host, robot) = SerialStream::pair()?;
+                let task = tokio::spawn(async move {
+                    let mut e = emu.lock().await;
+                    let _ = e.serve(robot).await;
+                });
+                *serving.lock().unwrap() = Some(task);
+                Ok(host)
+            })
+        }
+    };
+    let client = AriaClient::connect(connector, client_config())
+        .await
+        .unwrap();
+    let mut rx = client.odometry();
+    client.set_velocity(0.3, 0.0).await.unwrap();
+    let before = wait_odometry(&mut rx, "moving", |o| o.pose.x > 0.2).await;
+    // Pull the cable: the robot end of the pty goes away.
+    let task = serving.lock().unwrap().take().unwrap();
+    task.abort();
+    let _ = task.await;
+    let mut state = client.link_state();
+    tokio::time::timeout(
+        Duration::from_secs(5),
+        state.wait_for(|s| *s == LinkState::Connecting),
+    )
+    .await
+    .expect("drop not noticed")
+    .unwrap();
+    assert!(matches!(
+        client.set_velocity(0.1, 0.0).await,
+        Err(ClientError::NotConnected) | Ok(())
+    ));
+    tokio::time::timeout(
+        Duration::from_secs(5),
+        state.wait_for(|s| matches!(s, LinkState::Connected(_))),
+    )
+    .await
+    .expect("no reconnect")
+    .unwrap();
+    let seq = rx.borrow().seq;
+    let after = wait_odometry(&mut rx, "SIPs after reconnect", |o| o.seq > seq + 3).await;
+    assert_eq!(client.stats().reconnects, 1);
+    let st = handle.state();
+    assert_eq!(st.opens, 2);
+    assert!(st.closes >= 1, "the client closed the still-open robot");
+    // The robot stayed open across the drop, so the client had to CLOSE it first; its odometry
+    // carried on, and the published pose is continuous and still matches the truth.
+    let truth = handle.truth();
+    assert!(
+        after.pose.distance(&truth) < 0.01,
+        "{:?} vs {:?}",
+        after.pose,
+        truth
+    );
+    assert!(after.pose.x >= before.pose.x);
+    // And it can drive again.
+    client.set_velocity(0.2, 0.0).await.unwrap();
+    let x0 = after.pose.x;
+    wait_odometry(&mut rx, "driving after reconnect", |o| o.pose.x > x0 + 0.05).await;
+    client.shutdown().await.unwrap();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn handshake_fails_when_nothing_answers() {
+    let (host, _silent) = SerialStream::pair().unwrap();
+    let config = ClientConfig {
+        sync_timeout: Duration::from_millis(50),
+        sync_attempts: 3,
+        ..ClientConfig::default()
+    };
+    let err = AriaClient::from_stream(host, config).await.unwrap_err();
+    assert!(
+        matches!(err, ClientError::Handshake { attempts: 3, .. }),
+        "{err}"
+    );
+}
+
+/// The mock stands in for the client through the trait.
+async fn drive_forward<B: MobileBase>(base: &B) -> Result<(), ClientError> {
+    base.set_velocity(0.1, 0.0).await?;
+    base.stop().await
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn client_works_through_the_mobile_base_trait() {
+    let (host, emu, _task) = spawn_emulator(emulator_config());
+    let client = AriaClient::from_stream(host, client_config())
+        .await
+        .unwrap();
+    drive_forward(&client).await.unwrap();
+    let mut rx = MobileBase::odometry(&client);
+    wait_odometry(&mut rx, "SIP", |o| o.seq > 2).await;
+    assert!(emu.state().commands >= 4);
+    client.shutdown().await.unwrap();
+}
