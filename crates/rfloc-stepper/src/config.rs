@@ -111,3 +111,72 @@ impl StepperConfig {
         f64::from(self.full_steps_per_rev) * f64::from(self.microsteps) * self.gear_ratio
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn toml_with_defaults_and_policy() {
+        let c: StepperConfig = toml::from_str(
+            "microsteps = 4\ngear_ratio = 2.5\n[policy]\nkind = \"bounded\"\nmin_rad = -3.2\nmax_rad = 3.2\n",
+        )
+        .unwrap();
+        assert_eq!(c.microsteps, 4);
+        assert!((c.steps_per_output_rev() - 2000.0).abs() < 1e-9);
+        assert_eq!(
+            c.policy,
+            MovePolicy::Bounded {
+                min_rad: -3.2,
+                max_rad: 3.2
+            }
+        );
+        let s: StepperConfig = toml::from_str("[policy]\nkind = \"shortest_path\"\n").unwrap();
+        assert_eq!(s.policy, MovePolicy::ShortestPath);
+        assert!(toml::from_str::<StepperConfig>("microstep = 4\n").is_err());
+    }
+
+    #[test]
+    fn validation_rejects_unusable_numbers() {
+        let bad = [
+            StepperConfig {
+                microsteps: 0,
+                ..StepperConfig::default()
+            },
+            StepperConfig {
+                gear_ratio: f64::NAN,
+                ..StepperConfig::default()
+            },
+            StepperConfig {
+                start_speed_steps_per_s: 0.5,
+                ..StepperConfig::default()
+            },
+            StepperConfig {
+                max_speed_steps_per_s: 50.0,
+                ..StepperConfig::default()
+            },
+            StepperConfig {
+                max_speed_steps_per_s: 1e6,
+                ..StepperConfig::default()
+            },
+            StepperConfig {
+                accel_steps_per_s2: 0.0,
+                ..StepperConfig::default()
+            },
+            StepperConfig {
+                policy: MovePolicy::Bounded {
+                    min_rad: 0.5,
+                    max_rad: 1.0,
+                },
+                ..StepperConfig::default()
+            },
+        ];
+        for c in bad {
+            assert!(
+                matches!(c.validate(), Err(StepperError::InvalidConfig(_))),
+                "{c:?}"
+            );
+        }
+        assert!(StepperConfig::default().validate().is_ok());
+    }
+}
