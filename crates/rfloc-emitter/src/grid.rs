@@ -246,6 +246,14 @@ impl OccupancyGrid {
         }
     }
 
+    /// Marks a cell as certainly free.
+    pub fn mark_free(&mut self, c: GridCell) {
+        let lo = self.config.log_odds_min;
+        if let Some(slot) = self.index(c).and_then(|i| self.log_odds.get_mut(i)) {
+            *slot = lo;
+        }
+    }
+
     /// The whole grid in the seed's export values (100 / 0 / −1), row-major from row 0.
     #[must_use]
     pub fn export(&self) -> Vec<i8> {
