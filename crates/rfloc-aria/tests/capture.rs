@@ -19,7 +19,7 @@ use rfloc_aria::{
 use rfloc_capture::{Capture, Header};
 use rfloc_pose::{angle_diff, Pose2};
 use rfloc_transport::replay::{Pace, ReplayMode, Replayer};
-use rfloc_transport::{CaptureSink, Clock, MonotonicClock, Recorder, SharedClock};
+use rfloc_transport::{CaptureSink, MonotonicClock, Recorder, SharedClock};
 use tokio::sync::watch;
 use tokio_serial::SerialStream;
 
@@ -136,7 +136,7 @@ async fn record_square_capture() {
 /// The last truth row of `truth.csv`.
 fn final_truth() -> Pose2 {
     let text = std::fs::read_to_string(capture_dir().join("truth.csv")).unwrap();
-    let last = text.lines().filter(|l| !l.is_empty()).last().unwrap();
+    let last = text.lines().rfind(|l| !l.is_empty()).unwrap();
     let v: Vec<f64> = last.split(',').map(|x| x.parse().unwrap()).collect();
     Pose2::new(v[1], v[2], v[3])
 }
@@ -158,9 +158,8 @@ async fn replay_square_capture() {
     let last_rx_t = capture
         .records
         .iter()
-        .filter(|r| matches!(r.kind, rfloc_capture::RecordKind::Rx(_)))
+        .rfind(|r| matches!(r.kind, rfloc_capture::RecordKind::Rx(_)))
         .map(rfloc_capture::Record::t)
-        .last()
         .unwrap();
 
     let (io, replay) = Replayer::new(capture)
