@@ -1,0 +1,388 @@
+//! Scenario files: one experiment = a world (file or inline), robot start, goal and/or
+//! waypoints, duration, seeds, trial count, pipeline and sensor-model overrides.
+//! See `docs/simulator.md` for the format; every file in `scenarios/` is loaded by a test.
+
+use std::path::{Path, PathBuf};
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rfloc_pose::Pose2;
+use serde::{Deserialize, Serialize};
+
+use crate::emitter::EmitterModel;
+use crate::error::{find_key_line, from_toml, SimError};
+use crate::geometry::Point;
+use crate::hf::HfModel;
+use crate::kinematics::DiffDriveParams;
+use crate::scanner::RangeScanner;
+use crate::uhf::UhfModel;
+use crate::world::{World, WorldSpec};
+use crate::xbee::{RangeBearingNoise, XbeeModel};
+
+/// Which rfloc pipeline a scenario exercises.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Pipeline {
+    /// UHF snapshot localisation and MDP navigation (seed 000).
+    Snapshot,
+    /// Emitter tracking with motion planning only (seed 001, "preliminary system").
+    EmitterPreliminary,
+    /// Emitter tracking with mapping and A* (seed 001, "full system").
+    EmitterFull,
+    /// HF floor-grid initial pose (seed 002).
+    HfInit,
+    /// XBee EKF-SLAM with waypoint navigation (seed 003).
+    EkfSlam,
+}
+
+/// TOML form of a scenario.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScenarioSpec {
+    pub name: String,
+    #[serde(default)]
+    pub description: String,
+    /// Where the setup comes from (seed, section, table).
+    #[serde(default)]
+    pub source: String,
+    pub pipeline: Pipeline,
+    /// A world file, relative to the scenario file. Exactly one of `world_file`/`world`.
+    #[serde(default)]
+    pub world_file: Option<String>,
+    /// An inline world.
+    #[serde(default)]
+    pub world: Option<WorldSpec>,
+    /// Simulated time per trial, seconds.
+    pub duration_s: f64,
+    /// Simulation step, seconds.
+    pub dt_s: f64,
+    pub trials: usize,
+    /// Base seed; trial `i` uses `seed + i` for its random streams.
+    pub seed: u64,
+    pub robot: RobotSpec,
+    #[serde(default)]
+    pub goal: Option<GoalSpec>,
+    /// Waypoints `[[x, y], …]` to visit in order.
+    #[serde(default)]
+    pub waypoints: Vec<[f64; 2]>,
+    #[serde(default)]
+    pub sensors: SensorSpec,
+    #[serde(default)]
+    pub params: PipelineParams,
+}
+
+/// `[robot]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotSpec {
+    pub start: StartSpec,
+    /// Draw a collision-free random start position and heading per trial.
+    #[serde(default)]
+    pub random_start: bool,
+    /// Start headings to cycle through over the trials (degrees), e.g. seed 002's four.
+    #[serde(default)]
+    pub start_headings_deg: Vec<f64>,
+    #[serde(default)]
+    pub drive: DiffDriveParams,
+}
+
+/// `start = { x, y, theta_deg }`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StartSpec {
+    pub x: f64,
+    pub y: f64,
+    #[serde(default)]
+    pub theta_deg: f64,
+}
+
+/// `[goal]`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GoalSpec {
+    pub x: f64,
+    pub y: f64,
+    /// Reached when the true position is within this distance, metres.
+    pub tolerance_m: f64,
+    /// Draw a random goal per trial (inside the area, off obstacles).
+    #[serde(default)]
+    pub random: bool,
+}
+
+/// `[sensors]`: model parameter overrides (any omitted field keeps its default).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct SensorSpec {
+    #[serde(default)]
+    pub uhf: Option<UhfModel>,
+    #[serde(default)]
+    pub hf: Option<HfModel>,
+    #[serde(default)]
+    pub xbee: Option<XbeeModel>,
+    #[serde(default)]
+    pub xbee_range_bearing: Option<RangeBearingNoise>,
+    #[serde(default)]
+    pub emitter: Option<EmitterModel>,
+    #[serde(default)]
+    pub scanner: Option<RangeScanner>,
+}
+
+/// `[params]`: pipeline settings taken from the seeds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct PipelineParams {
+    /// Seed 000: number of exploration steps before navigation.
+    #[serde(default)]
+    pub exploration_steps: Option<usize>,
+    /// Seed 000: maximum navigation steps before a trial counts as failed.
+    #[serde(default)]
+    pub navigation_steps: Option<usize>,
+    /// Seed 000 Table 4: action duration, seconds.
+    #[serde(default)]
+    pub action_duration_s: Option<f64>,
+    /// Seed 002: readings per on-the-spot turn (8, one per 45°).
+    #[serde(default)]
+    pub readings_per_turn: Option<usize>,
+    /// Seed 003: reflector sweep steps per revolution (40 × 9°).
+    #[serde(default)]
+    pub sweep_steps: Option<usize>,
+    /// Seed 003: waypoint switching distance ρ_min, metres.
+    #[serde(default)]
+    pub waypoint_switch_m: Option<f64>,
+    /// Seed 003: number of filter iterations.
+    #[serde(default)]
+    pub iterations: Option<usize>,
+    /// Seed 001: particle count.
+    #[serde(default)]
+    pub particles: Option<usize>,
+    /// Seed 001: occupancy grid cell, metres.
+    #[serde(default)]
+    pub grid_cell_m: Option<f64>,
+}
+
+/// A loaded, validated scenario.
+#[derive(Debug, Clone)]
+pub struct Scenario {
+    pub spec: ScenarioSpec,
+    pub world: World,
+    /// The file it was loaded from.
+    pub path: PathBuf,
+}
+
+fn invalid(path: &Path, text: &str, key: &str, message: impl Into<String>) -> SimError {
+    SimError::Invalid { path: path.to_path_buf(), line: find_key_line(text, key), key: key.to_string(), message: message.into() }
+}
+
+impl Scenario {
+    /// Reads, parses and validates a scenario file (and its world file).
+    pub fn load(path: &Path) -> Result<Scenario, SimError> {
+        let text = std::fs::read_to_string(path).map_err(|source| SimError::Io { path: path.to_path_buf(), source })?;
+        Scenario::from_toml_str(&text, path)
+    }
+
+    /// Parses and validates scenario TOML; `path` locates a relative `world_file`.
+    pub fn from_toml_str(text: &str, path: &Path) -> Result<Scenario, SimError> {
+        let spec: ScenarioSpec = toml::from_str(text).map_err(|e| from_toml(path, text, &e))?;
+        let world = match (&spec.world_file, &spec.world) {
+            (Some(f), None) => {
+                let wp = path.parent().unwrap_or_else(|| Path::new(".")).join(f);
+                World::load(&wp)?
+            }
+            (None, Some(w)) => World::resolve(w, text, path)?,
+            _ => return Err(invalid(path, text, "world_file", "give exactly one of `world_file` or `[world]`")),
+        };
+        let s = Scenario { spec, world, path: path.to_path_buf() };
+        s.validate(text)?;
+        Ok(s)
+    }
+
+    fn validate(&self, text: &str) -> Result<(), SimError> {
+        let p = &self.path;
+        let sp = &self.spec;
+        if sp.name.trim().is_empty() {
+            return Err(invalid(p, text, "name", "must not be empty"));
+        }
+        if !(sp.dt_s.is_finite() && sp.dt_s > 0.0) {
+            return Err(invalid(p, text, "dt_s", "must be positive"));
+        }
+        if !(sp.duration_s.is_finite() && sp.duration_s >= sp.dt_s) {
+            return Err(invalid(p, text, "duration_s", "must be at least dt_s"));
+        }
+        if sp.trials == 0 {
+            return Err(invalid(p, text, "trials", "must be at least 1"));
+        }
+        let st = sp.robot.start;
+        let r = sp.robot.drive.body_radius;
+        if !sp.robot.random_start && (!self.in_area(st.x, st.y) || self.world.disk_collides(&Point::new(st.x, st.y), r)) {
+            return Err(invalid(p, text, "start", "start must be inside the area and clear of walls"));
+        }
+        if let Some(g) = sp.goal {
+            if !self.in_area(g.x, g.y) || !(g.tolerance_m.is_finite() && g.tolerance_m > 0.0) {
+                return Err(invalid(p, text, "goal", "goal must be inside the area with a positive tolerance"));
+            }
+        }
+        if let Some(w) = sp.waypoints.iter().find(|w| !self.in_area(w[0], w[1])) {
+            return Err(invalid(p, text, "waypoints", format!("{w:?} is outside the area")));
+        }
+        match sp.pipeline {
+            Pipeline::Snapshot if self.world.uhf_tags.is_empty() => Err(invalid(p, text, "pipeline", "snapshot needs [uhf_tags]")),
+            Pipeline::HfInit if self.world.hf_tags.is_empty() => Err(invalid(p, text, "pipeline", "hf-init needs [hf_grid]")),
+            Pipeline::EkfSlam if self.world.beacons.is_empty() || sp.waypoints.is_empty() => {
+                Err(invalid(p, text, "pipeline", "ekf-slam needs [[xbee_beacons]] and waypoints"))
+            }
+            Pipeline::EmitterPreliminary | Pipeline::EmitterFull if self.world.emitter.is_none() => {
+                Err(invalid(p, text, "pipeline", "emitter pipelines need [emitter]"))
+            }
+            _ => Ok(()),
+        }
+    }
+
+    fn in_area(&self, x: f64, y: f64) -> bool {
+        x.is_finite()
+            && y.is_finite()
+            && x >= self.world.area_min.x
+            && x <= self.world.area_max.x
+            && y >= self.world.area_min.y
+            && y <= self.world.area_max.y
+    }
+
+    /// Seed of trial `i` (base seed + i).
+    #[must_use]
+    pub fn trial_seed(&self, trial: usize) -> u64 {
+        self.spec.seed.wrapping_add(trial as u64)
+    }
+
+    /// Start pose of trial `i`: the fixed start (with `start_headings_deg` cycled), or a
+    /// seeded random collision-free pose when `random_start` is set.
+    #[must_use]
+    pub fn start_pose(&self, trial: usize) -> Pose2 {
+        let st = self.spec.robot.start;
+        let heading = self
+            .spec
+            .robot
+            .start_headings_deg
+            .get(trial % self.spec.robot.start_headings_deg.len().max(1))
+            .copied()
+            .unwrap_or(st.theta_deg);
+        if !self.spec.robot.random_start {
+            return Pose2::new(st.x, st.y, heading.to_radians());
+        }
+        let mut rng = ChaCha8Rng::seed_from_u64(self.trial_seed(trial) ^ 0x5354_4152_5421);
+        let (x, y) = self.random_free_point(&mut rng).unwrap_or((st.x, st.y));
+        Pose2::new(x, y, rng.random_range(-std::f64::consts::PI..std::f64::consts::PI))
+    }
+
+    /// Goal of trial `i` (seeded random when `goal.random`), if the scenario has one.
+    #[must_use]
+    pub fn goal(&self, trial: usize) -> Option<Point> {
+        let g = self.spec.goal?;
+        if !g.random {
+            return Some(Point::new(g.x, g.y));
+        }
+        let mut rng = ChaCha8Rng::seed_from_u64(self.trial_seed(trial) ^ 0x474F_414C);
+        let (x, y) = self.random_free_point(&mut rng).unwrap_or((g.x, g.y));
+        Some(Point::new(x, y))
+    }
+
+    fn random_free_point(&self, rng: &mut ChaCha8Rng) -> Option<(f64, f64)> {
+        let r = self.spec.robot.drive.body_radius;
+        let (lo, hi) = (self.world.area_min, self.world.area_max);
+        if hi.x - lo.x <= 2.0 * r || hi.y - lo.y <= 2.0 * r {
+            return None;
+        }
+        (0..10_000).find_map(|_| {
+            let x = rng.random_range(lo.x + r..hi.x - r);
+            let y = rng.random_range(lo.y + r..hi.y - r);
+            (!self.world.disk_collides(&Point::new(x, y), r)).then_some((x, y))
+        })
+    }
+
+    /// Number of simulation steps per trial.
+    #[must_use]
+    pub fn steps(&self) -> usize {
+        // Validated: duration ≥ dt > 0, both finite.
+        (self.spec.duration_s / self.spec.dt_s).round().max(1.0) as usize
+    }
+
+    /// UHF model with the scenario's overrides.
+    #[must_use]
+    pub fn uhf_model(&self) -> UhfModel {
+        self.spec.sensors.uhf.unwrap_or_default()
+    }
+    /// HF model with the scenario's overrides.
+    #[must_use]
+    pub fn hf_model(&self) -> HfModel {
+        self.spec.sensors.hf.unwrap_or_default()
+    }
+    /// XBee RSSI model with the scenario's overrides.
+    #[must_use]
+    pub fn xbee_model(&self) -> XbeeModel {
+        self.spec.sensors.xbee.unwrap_or_default()
+    }
+    /// XBee range/bearing noise (seed 003 Table 3.1 by default).
+    #[must_use]
+    pub fn xbee_range_bearing(&self) -> RangeBearingNoise {
+        self.spec.sensors.xbee_range_bearing.unwrap_or_default()
+    }
+    /// Emitter model with the scenario's overrides.
+    #[must_use]
+    pub fn emitter_model(&self) -> EmitterModel {
+        self.spec.sensors.emitter.unwrap_or_default()
+    }
+    /// Range scanner with the scenario's overrides.
+    #[must_use]
+    pub fn scanner(&self) -> RangeScanner {
+        self.spec.sensors.scanner.unwrap_or_default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const S: &str = r#"
+name = "t"
+pipeline = "ekf-slam"
+duration_s = 10.0
+dt_s = 0.1
+trials = 3
+seed = 5
+waypoints = [[2.0, 2.0], [2.0, 7.0]]
+
+[robot]
+start = { x = 1.0, y = 1.0 }
+random_start = false
+
+[world]
+area = { min = [0.0, 0.0], max = [9.0, 9.0] }
+xbee_beacons = [{ x = 0.0, y = 3.5, address = "0013A20040000001", ni = "beacon1" }]
+"#;
+
+    #[test]
+    fn inline_world_loads_and_trial_seeds_step() {
+        let s = Scenario::from_toml_str(S, Path::new("s.toml")).unwrap();
+        assert_eq!(s.steps(), 100);
+        assert_eq!(s.trial_seed(2), 7);
+        assert_eq!(s.start_pose(1), Pose2::new(1.0, 1.0, 0.0));
+        assert_eq!(s.xbee_range_bearing().sigma_r, 2.0);
+    }
+
+    #[test]
+    fn random_start_is_seeded_and_clear() {
+        let s = Scenario::from_toml_str(&S.replace("random_start = false", "random_start = true"), Path::new("s.toml")).unwrap();
+        let a = s.start_pose(0);
+        assert_eq!(a, s.start_pose(0));
+        assert_ne!(a, s.start_pose(1));
+        assert!(!s.world.disk_collides(&Point::new(a.x, a.y), 0.2));
+    }
+
+    #[test]
+    fn validation_errors_name_key_and_line() {
+        let e = Scenario::from_toml_str(&S.replace("trials = 3", "trials = 0"), Path::new("s.toml")).unwrap_err();
+        assert!(matches!(e, SimError::Invalid { line: 6, ref key, .. } if key == "trials"), "{e}");
+        let e = Scenario::from_toml_str(&S.replace("[2.0, 7.0]]", "[2.0, 17.0]]"), Path::new("s.toml")).unwrap_err();
+        assert!(matches!(e, SimError::Invalid { line: 8, ref key, .. } if key == "waypoints"), "{e}");
+        let e = Scenario::from_toml_str(&S.replace("pipeline = \"ekf-slam\"", "pipeline = \"ekf\""), Path::new("s.toml")).unwrap_err();
+        assert!(matches!(e, SimError::Toml { line: 3, ref key, .. } if key == "pipeline"), "{e}");
+    }
+}
