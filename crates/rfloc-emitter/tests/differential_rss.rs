@@ -1,5 +1,7 @@
 //! The differential-RSS inversion (eq. 3–4 as reconstructed) against the forward model.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers
+
 use proptest::prelude::*;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -12,7 +14,7 @@ proptest! {
     #[test]
     fn noise_free_inversion_is_exact(
         rx in -20.0f64..20.0, ry in -20.0f64..20.0, rt in -3.2f64..3.2,
-        range in 0.2f64..50.0, bearing in -3.14f64..3.14,
+        range in 0.2f64..50.0, bearing in -3.1f64..3.1,
     ) {
         let model = DirectionalArrayModel { noise_std_db: 0.0, ..DirectionalArrayModel::default() };
         let robot = Pose2::new(rx, ry, rt);

@@ -1,5 +1,7 @@
 //! Occupancy grid ray-casting and A* planning on hand-made grids.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers
+
 use proptest::prelude::*;
 use rfloc_emitter::{
     plan_path, simplify_path, CellClass, CostMap, GridCell, Heading4, OccupancyGrid,

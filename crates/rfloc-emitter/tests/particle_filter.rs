@@ -1,6 +1,8 @@
 //! Particle filter: convergence with seeded noise, filtered vs raw error, N_eff and systematic
 //! resampling properties.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers
+
 use proptest::prelude::*;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
