@@ -356,3 +356,30 @@ async fn client_works_through_the_mobile_base_trait() {
     assert!(emu.state().commands >= 4);
     client.shutdown().await.unwrap();
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn wheel_slip_separates_odometry_from_truth() {
+    let config = EmulatorConfig {
+        slip: Some(rfloc_aria::WheelSlip {
+            seed: 3,
+            relative_std: 0.05,
+        }),
+        ..emulator_config()
+    };
+    let (host, emu, _task) = spawn_emulator(config);
+    let client = AriaClient::from_stream(host, client_config())
+        .await
+        .unwrap();
+    let mut rx = client.odometry();
+    wait_odometry(&mut rx, "first SIP", |o| o.seq > 0).await;
+    drive_side(&client, &mut rx, 1.0).await;
+    let odo = wait_still(&mut rx).await;
+    let state = emu.state();
+    let vs_robot = odo.pose.distance(&state.odometry);
+    let vs_truth = odo.pose.distance(&state.truth);
+    eprintln!("slip: odometry-robot {vs_robot:.5} m, odometry-truth {vs_truth:.5} m");
+    // The client reports the robot's encoder odometry, which slip does not touch.
+    assert!(vs_robot < 0.002);
+    assert!(vs_truth > vs_robot);
+    client.shutdown().await.unwrap();
+}
