@@ -95,6 +95,17 @@ mod tests {
     }
 
     #[test]
+    fn default_ramp_nine_degree_stop_duration() {
+        // Defaults 100 → 400 steps/s at 800 steps/s²; 5 steps = 9° on a 1.8° motor.
+        let r = RampProfile {
+            start_speed: 100.0,
+            max_speed: 400.0,
+            accel: 800.0,
+        };
+        assert!((r.move_duration_s(5) - 0.047_273).abs() < 1e-6);
+    }
+
+    #[test]
     fn period_never_below_pulse_limits() {
         let r = RampProfile {
             start_speed: 1e9,
