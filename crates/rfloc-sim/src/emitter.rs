@@ -27,7 +27,12 @@ use crate::world::{Emitter, World};
 /// Wavelength at 915 MHz, metres (seed 001 section 4.2).
 pub const WAVELENGTH: f64 = 0.3276;
 /// Boresight of the four antennas relative to the heading: front, left, back, right.
-pub const ANTENNA_BORESIGHTS: [f64; 4] = [0.0, std::f64::consts::FRAC_PI_2, std::f64::consts::PI, -std::f64::consts::FRAC_PI_2];
+pub const ANTENNA_BORESIGHTS: [f64; 4] = [
+    0.0,
+    std::f64::consts::FRAC_PI_2,
+    std::f64::consts::PI,
+    -std::f64::consts::FRAC_PI_2,
+];
 
 /// Parameters of the four-antenna RSS model.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -69,13 +74,23 @@ impl EmitterModel {
         let here = Point::new(robot.x, robot.y);
         let d = here.distance(&emitter.position).max(0.05);
         let walls = world.walls_crossed(&here, &emitter.position) as f64;
-        let base = emitter.power_dbm - self.reference_loss_db - 10.0 * self.path_loss_exponent * d.log10() - walls * self.wall_loss_db;
+        let base = emitter.power_dbm
+            - self.reference_loss_db
+            - 10.0 * self.path_loss_exponent * d.log10()
+            - walls * self.wall_loss_db;
         let bearing = (emitter.position.y - robot.y).atan2(emitter.position.x - robot.x);
-        ANTENNA_BORESIGHTS.map(|b| base + self.pattern.gain_db(angle_diff(bearing, robot.theta + b)))
+        ANTENNA_BORESIGHTS
+            .map(|b| base + self.pattern.gain_db(angle_diff(bearing, robot.theta + b)))
     }
 
     /// One reading of the four antennas.
-    pub fn sample<R: Rng + ?Sized>(&self, world: &World, robot: &Pose2, emitter: &Emitter, rng: &mut R) -> AntennaRss {
+    pub fn sample<R: Rng + ?Sized>(
+        &self,
+        world: &World,
+        robot: &Pose2,
+        emitter: &Emitter,
+        rng: &mut R,
+    ) -> AntennaRss {
         self.mean_rss(world, robot, emitter).map(|m| {
             let z = m + gaussian(rng, self.multipath_sigma_db);
             (z >= self.sensitivity_dbm).then_some(z)
@@ -89,14 +104,21 @@ mod tests {
     use std::path::Path;
 
     fn world(extra: &str) -> World {
-        World::from_toml_str(&format!("[area]\nmin=[-10.0,-10.0]\nmax=[10.0,10.0]\n{extra}"), Path::new("w")).unwrap()
+        World::from_toml_str(
+            &format!("[area]\nmin=[-10.0,-10.0]\nmax=[10.0,10.0]\n{extra}"),
+            Path::new("w"),
+        )
+        .unwrap()
     }
 
     #[test]
     fn strongest_antenna_faces_the_emitter_and_pairs_differ() {
         let w = world("");
         let m = EmitterModel::default();
-        let e = Emitter { position: Point::new(0.0, 4.0), power_dbm: 0.0 };
+        let e = Emitter {
+            position: Point::new(0.0, 4.0),
+            power_dbm: 0.0,
+        };
         let rss = m.mean_rss(&w, &Pose2::new(0.0, 0.0, 0.0), &e);
         // Emitter on the left: left antenna strongest, right weakest by the back lobe.
         assert!(rss[1] > rss[0] && rss[1] > rss[2] && rss[1] > rss[3]);
@@ -110,12 +132,26 @@ mod tests {
     #[test]
     fn walls_attenuate_and_reach_exceeds_50_m() {
         let m = EmitterModel::default();
-        let e = Emitter { position: Point::new(4.0, 0.0), power_dbm: 0.0 };
+        let e = Emitter {
+            position: Point::new(4.0, 0.0),
+            power_dbm: 0.0,
+        };
         let open = m.mean_rss(&world(""), &Pose2::default(), &e);
-        let walled = m.mean_rss(&world("[[walls]]\npoints = [[2.0, -1.0], [2.0, 1.0]]\n"), &Pose2::default(), &e);
+        let walled = m.mean_rss(
+            &world("[[walls]]\npoints = [[2.0, -1.0], [2.0, 1.0]]\n"),
+            &Pose2::default(),
+            &e,
+        );
         assert!((open[0] - walled[0] - 6.0).abs() < 1e-9);
-        let far = Emitter { position: Point::new(9.0, 0.0), power_dbm: 0.0 };
-        let big = World::from_toml_str("[area]\nmin=[-60.0,-60.0]\nmax=[60.0,60.0]\n", Path::new("w")).unwrap();
+        let far = Emitter {
+            position: Point::new(9.0, 0.0),
+            power_dbm: 0.0,
+        };
+        let big = World::from_toml_str(
+            "[area]\nmin=[-60.0,-60.0]\nmax=[60.0,60.0]\n",
+            Path::new("w"),
+        )
+        .unwrap();
         let at50 = m.mean_rss(&big, &Pose2::new(-41.0, 0.0, 0.0), &far);
         assert!(at50[0] > m.sensitivity_dbm + 3.0 * m.multipath_sigma_db);
     }

@@ -47,7 +47,9 @@ pub fn line_column(text: &str, offset: usize) -> (usize, usize) {
     let before = text.get(..offset).unwrap_or(text);
     let line = before.matches('\n').count() + 1;
     let line_start = before.rfind('\n').map_or(0, |i| i + 1);
-    let column = before.get(line_start..).map_or(1, |s| s.chars().count() + 1);
+    let column = before
+        .get(line_start..)
+        .map_or(1, |s| s.chars().count() + 1);
     (line, column)
 }
 
@@ -61,7 +63,8 @@ pub fn key_on_line(text: &str, line: usize) -> String {
     if l.starts_with('[') {
         return l.to_string();
     }
-    l.split_once('=').map_or_else(|| l.to_string(), |(k, _)| k.trim().to_string())
+    l.split_once('=')
+        .map_or_else(|| l.to_string(), |(k, _)| k.trim().to_string())
 }
 
 /// Converts a `toml` deserialisation error into [`SimError::Toml`] with line, column and key.
@@ -71,7 +74,11 @@ pub(crate) fn from_toml(path: &std::path::Path, text: &str, err: &toml::de::Erro
         path: path.to_path_buf(),
         line,
         column,
-        key: if line > 0 { key_on_line(text, line) } else { String::new() },
+        key: if line > 0 {
+            key_on_line(text, line)
+        } else {
+            String::new()
+        },
         message: err.message().trim().to_string(),
     }
 }
@@ -88,13 +95,11 @@ pub(crate) fn find_key_line(text: &str, key: &str) -> usize {
             return i + 1;
         }
         if fallback == 0 {
-            let found = t
-                .split(|c| c == '{' || c == ',' || c == '[')
-                .any(|part| {
-                    part.trim_start()
-                        .strip_prefix(last)
-                        .is_some_and(|rest| rest.trim_start().starts_with('='))
-                });
+            let found = t.split(['{', ',', '[']).any(|part| {
+                part.trim_start()
+                    .strip_prefix(last)
+                    .is_some_and(|rest| rest.trim_start().starts_with('='))
+            });
             if found {
                 fallback = i + 1;
             }

@@ -165,7 +165,9 @@ mod tests {
         let wall = Segment::new(Point::new(3.0, -1.0), Point::new(3.0, 1.0));
         let d = wall.ray_hit(&Point::new(0.0, 0.0), 0.0);
         assert!((d.unwrap_or(f64::NAN) - 3.0).abs() < 1e-12);
-        assert!(wall.ray_hit(&Point::new(0.0, 0.0), std::f64::consts::PI).is_none());
+        assert!(wall
+            .ray_hit(&Point::new(0.0, 0.0), std::f64::consts::PI)
+            .is_none());
     }
 
     #[test]

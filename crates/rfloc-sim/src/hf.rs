@@ -55,8 +55,11 @@ pub const BLIND_SPOT_KNOTS: [(f64, f64); 19] = [
     (14.0, 0.0),
 ];
 
-/// Table 4 as printed: `(rssi, maximal, middle, minimal)` distances in cm.
-pub const TABLE_4: [(u8, Option<f64>, Option<f64>, Option<f64>); 8] = [
+/// One column of Table 4: `(rssi, maximal, middle, minimal)` distance in cm.
+pub type Table4Column = (u8, Option<f64>, Option<f64>, Option<f64>);
+
+/// Table 4 as printed.
+pub const TABLE_4: [Table4Column; 8] = [
     (0, Some(14.0), Some(5.0), None),
     (1, Some(9.8), Some(5.1), Some(4.7)),
     (2, Some(9.0), Some(5.3), Some(4.5)),
@@ -91,7 +94,11 @@ pub struct HfModel {
 
 impl Default for HfModel {
     fn default() -> Self {
-        Self { curve: HfCurve::BlindSpot, spread_levels: 0.35, antenna_offset: ANTENNA_OFFSET }
+        Self {
+            curve: HfCurve::BlindSpot,
+            spread_levels: 0.35,
+            antenna_offset: ANTENNA_OFFSET,
+        }
     }
 }
 
@@ -135,7 +142,8 @@ impl HfModel {
 
     /// A noisy RSSI sample at `distance` metres.
     pub fn sample_rssi<R: Rng + ?Sized>(&self, distance: f64, rng: &mut R) -> Option<u8> {
-        self.continuous_rssi(distance).map(|r| round_level(r + gaussian(rng, self.spread_levels)))
+        self.continuous_rssi(distance)
+            .map(|r| round_level(r + gaussian(rng, self.spread_levels)))
     }
 
     /// Antenna position (world frame) for a robot pose.
@@ -145,15 +153,28 @@ impl HfModel {
     }
 
     /// The tags read by an antenna at world position `(ax, ay)`, nearest first.
-    pub fn tags_under_antenna<R: Rng + ?Sized>(&self, antenna: (f64, f64), tags: &[HfTag], rng: &mut R) -> Vec<HfRead> {
+    pub fn tags_under_antenna<R: Rng + ?Sized>(
+        &self,
+        antenna: (f64, f64),
+        tags: &[HfTag],
+        rng: &mut R,
+    ) -> Vec<HfRead> {
         let mut near: Vec<(f64, &HfTag)> = tags
             .iter()
-            .map(|t| ((t.position.x - antenna.0).hypot(t.position.y - antenna.1), t))
+            .map(|t| {
+                (
+                    (t.position.x - antenna.0).hypot(t.position.y - antenna.1),
+                    t,
+                )
+            })
             .filter(|(d, _)| *d <= MAX_READ_DISTANCE)
             .collect();
         near.sort_by(|a, b| a.0.total_cmp(&b.0));
         near.into_iter()
-            .filter_map(|(d, t)| self.sample_rssi(d, rng).map(|rssi| HfRead { uid: t.uid, rssi }))
+            .filter_map(|(d, t)| {
+                self.sample_rssi(d, rng)
+                    .map(|rssi| HfRead { uid: t.uid, rssi })
+            })
             .collect()
     }
 }
@@ -188,9 +209,14 @@ mod tests {
         assert_eq!(m.rssi(0.060), Some(5));
         assert_eq!(m.rssi(0.141), None);
         // Level 2 is ambiguous: seen near 4.5, 5.3 and 9 cm.
-        let twos = (0..=140).filter(|mm| m.rssi(f64::from(*mm) / 1000.0) == Some(2)).count();
+        let twos = (0..=140)
+            .filter(|mm| m.rssi(f64::from(*mm) / 1000.0) == Some(2))
+            .count();
         assert!(twos >= 3);
-        let mono = HfModel { curve: HfCurve::Monotonic, ..HfModel::default() };
+        let mono = HfModel {
+            curve: HfCurve::Monotonic,
+            ..HfModel::default()
+        };
         assert_eq!(mono.rssi(0.0), Some(7));
         assert_eq!(mono.rssi(0.05), Some(5));
         assert_eq!(mono.rssi(0.14), Some(0));
@@ -198,17 +224,29 @@ mod tests {
 
     #[test]
     fn grid_tags_under_antenna_nearest_first() {
-        let m = HfModel { spread_levels: 0.0, ..HfModel::default() };
+        let m = HfModel {
+            spread_levels: 0.0,
+            ..HfModel::default()
+        };
         let tags: Vec<HfTag> = (0..9)
-            .map(|i| HfTag { uid: 100 + i as u64, position: Point::new(0.1 * (i % 3) as f64, 0.1 * (i / 3) as f64), row: i / 3, col: i % 3 })
+            .map(|i| HfTag {
+                uid: 100 + i as u64,
+                position: Point::new(0.1 * (i % 3) as f64, 0.1 * (i / 3) as f64),
+                row: i / 3,
+                col: i % 3,
+            })
             .collect();
         let mut rng = ChaCha8Rng::seed_from_u64(2);
         // Robot at (0.2, 0.2) heading 0 → antenna at (0.3, 0.2): only the x = 0.2 column within 14 cm.
-        let reads = m.tags_under_antenna(m.antenna_position(&Pose2::new(0.2, 0.2, 0.0)), &tags, &mut rng);
+        let reads = m.tags_under_antenna(
+            m.antenna_position(&Pose2::new(0.2, 0.2, 0.0)),
+            &tags,
+            &mut rng,
+        );
         let uids: Vec<u64> = reads.iter().map(|r| r.uid).collect();
         assert_eq!(uids, [108]);
         assert_eq!(reads[0].rssi, 1); // 10 cm: 1 − 0.2/4.2 = 0.95 → level 1
-        // Antenna at (0.15, 0.15): four tags at 7.07 cm each.
+                                      // Antenna at (0.15, 0.15): four tags at 7.07 cm each.
         let reads = m.tags_under_antenna((0.15, 0.15), &tags, &mut rng);
         assert_eq!(reads.len(), 4);
         assert!(reads.iter().all(|r| r.rssi == 4));
@@ -219,7 +257,9 @@ mod tests {
         let m = HfModel::default();
         let run = |s| {
             let mut rng = ChaCha8Rng::seed_from_u64(s);
-            (0..50).map(|i| m.sample_rssi(f64::from(i) * 0.0028, &mut rng)).collect::<Vec<_>>()
+            (0..50)
+                .map(|i| m.sample_rssi(f64::from(i) * 0.0028, &mut rng))
+                .collect::<Vec<_>>()
         };
         assert_eq!(run(1), run(1));
         assert_ne!(run(1), run(2));

@@ -21,7 +21,11 @@ pub fn integrate_unicycle(pose: &Pose2, v: f64, omega: f64, dt: f64) -> Pose2 {
     let dtheta = omega * dt;
     if dtheta.abs() < 1e-9 {
         let mid = pose.theta + 0.5 * dtheta;
-        return Pose2::new(pose.x + v * dt * mid.cos(), pose.y + v * dt * mid.sin(), pose.theta + dtheta);
+        return Pose2::new(
+            pose.x + v * dt * mid.cos(),
+            pose.y + v * dt * mid.sin(),
+            pose.theta + dtheta,
+        );
     }
     let r = v / omega;
     let th1 = pose.theta + dtheta;
@@ -114,7 +118,13 @@ impl RobotSim {
     /// A robot at `start` (odometry starts there too) with noise drawn from `seed`.
     #[must_use]
     pub fn new(params: DiffDriveParams, start: Pose2, seed: u64) -> Self {
-        Self { params, truth: start, odometry: start, rng: ChaCha8Rng::seed_from_u64(seed), bumped: false }
+        Self {
+            params,
+            truth: start,
+            odometry: start,
+            rng: ChaCha8Rng::seed_from_u64(seed),
+            bumped: false,
+        }
     }
 
     /// True pose.
@@ -144,8 +154,16 @@ impl RobotSim {
     /// the travelled fraction (the wheels stall at contact).
     pub fn step(&mut self, v_cmd: f64, omega_cmd: f64, dt: f64, world: &World) -> StepOutcome {
         let p = self.params;
-        let v = if v_cmd.is_finite() { v_cmd.clamp(-p.max_speed, p.max_speed) } else { 0.0 };
-        let w = if omega_cmd.is_finite() { omega_cmd.clamp(-p.max_turn_rate, p.max_turn_rate) } else { 0.0 };
+        let v = if v_cmd.is_finite() {
+            v_cmd.clamp(-p.max_speed, p.max_speed)
+        } else {
+            0.0
+        };
+        let w = if omega_cmd.is_finite() {
+            omega_cmd.clamp(-p.max_turn_rate, p.max_turn_rate)
+        } else {
+            0.0
+        };
         let dt = if dt.is_finite() && dt > 0.0 { dt } else { 0.0 };
         let slip = (p.slip_mean + gaussian(&mut self.rng, p.slip_sigma)).clamp(0.0, 1.0);
         let v_true = v * (1.0 - slip) + gaussian(&mut self.rng, p.sigma_v);
@@ -156,36 +174,46 @@ impl RobotSim {
             let q = integrate_unicycle(&start, v_true, w_true, dt * f);
             world.disk_collides(&Point::new(q.x, q.y), p.body_radius)
         };
-        let mut fraction = 1.0;
-        self.bumped = false;
-        if blocked(1.0) {
-            self.bumped = true;
-            let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
-            if blocked(0.0) {
-                hi = 0.0; // already in contact: only moves that leave contact are allowed
-                let probe = integrate_unicycle(&start, v_true, w_true, dt);
-                let d_now = world.walls.iter().map(|s| s.distance_to_point(&Point::new(start.x, start.y))).fold(f64::INFINITY, f64::min);
-                let d_next = world.walls.iter().map(|s| s.distance_to_point(&Point::new(probe.x, probe.y))).fold(f64::INFINITY, f64::min);
-                if d_next > d_now {
-                    hi = 1.0;
-                    lo = 1.0;
-                }
+        let clearance = |q: &Pose2| {
+            let c = Point::new(q.x, q.y);
+            world
+                .walls
+                .iter()
+                .map(|s| s.distance_to_point(&c))
+                .fold(f64::INFINITY, f64::min)
+        };
+        let (fraction, bumped) = if !blocked(1.0) {
+            (1.0, false)
+        } else if blocked(0.0) {
+            // Already in contact: only a move that increases the clearance is executed.
+            let probe = integrate_unicycle(&start, v_true, w_true, dt);
+            if clearance(&probe) > clearance(&start) {
+                (1.0, false)
             } else {
-                for _ in 0..12 {
-                    let mid = 0.5 * (lo + hi);
-                    if blocked(mid) {
-                        hi = mid;
-                    } else {
-                        lo = mid;
-                    }
+                (0.0, true)
+            }
+        } else {
+            // Bisection for the last collision-free fraction of the step.
+            let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
+            for _ in 0..12 {
+                let mid = 0.5 * (lo + hi);
+                if blocked(mid) {
+                    hi = mid;
+                } else {
+                    lo = mid;
                 }
             }
-            fraction = lo;
-            let _ = hi;
-        }
+            (lo, true)
+        };
+        self.bumped = bumped;
         self.truth = integrate_unicycle(&start, v_true, w_true, dt * fraction);
         self.odometry = integrate_unicycle(&self.odometry, v, w, dt * fraction);
-        StepOutcome { truth: self.truth, odometry: self.odometry, bumped: self.bumped, executed: (v_true, w_true) }
+        StepOutcome {
+            truth: self.truth,
+            odometry: self.odometry,
+            bumped: self.bumped,
+            executed: (v_true, w_true),
+        }
     }
 }
 
@@ -196,11 +224,19 @@ mod tests {
     use std::path::Path;
 
     fn open_world() -> World {
-        World::from_toml_str("[area]\nmin=[-50.0,-50.0]\nmax=[50.0,50.0]\n", Path::new("w")).unwrap()
+        World::from_toml_str(
+            "[area]\nmin=[-50.0,-50.0]\nmax=[50.0,50.0]\n",
+            Path::new("w"),
+        )
+        .unwrap()
     }
 
     fn noiseless() -> DiffDriveParams {
-        DiffDriveParams { sigma_v: 0.0, sigma_omega: 0.0, ..DiffDriveParams::default() }
+        DiffDriveParams {
+            sigma_v: 0.0,
+            sigma_omega: 0.0,
+            ..DiffDriveParams::default()
+        }
     }
 
     #[test]
@@ -228,7 +264,10 @@ mod tests {
             let r = p.x.hypot(p.y - 2.0);
             max_dist_from_centre_err = max_dist_from_centre_err.max((r - 2.0).abs());
         }
-        assert!(p.x.abs() < 1e-9 && p.y.abs() < 1e-9 && p.theta.abs() < 1e-9, "{p:?}");
+        assert!(
+            p.x.abs() < 1e-9 && p.y.abs() < 1e-9 && p.theta.abs() < 1e-9,
+            "{p:?}"
+        );
         assert!(max_dist_from_centre_err < 1e-9);
     }
 
@@ -262,8 +301,20 @@ mod tests {
     fn same_seed_same_trajectory_different_seed_differs() {
         let w = open_world();
         let run = |seed| {
-            let mut r = RobotSim::new(DiffDriveParams { slip_sigma: 0.05, ..DiffDriveParams::default() }, Pose2::default(), seed);
-            (0..200).map(|i| r.step(0.5, if i % 50 < 25 { 0.3 } else { -0.3 }, 0.1, &w).truth).collect::<Vec<_>>()
+            let mut r = RobotSim::new(
+                DiffDriveParams {
+                    slip_sigma: 0.05,
+                    ..DiffDriveParams::default()
+                },
+                Pose2::default(),
+                seed,
+            );
+            (0..200)
+                .map(|i| {
+                    r.step(0.5, if i % 50 < 25 { 0.3 } else { -0.3 }, 0.1, &w)
+                        .truth
+                })
+                .collect::<Vec<_>>()
         };
         assert_eq!(run(3), run(3));
         assert_ne!(run(3), run(4));
@@ -272,7 +323,11 @@ mod tests {
     #[test]
     fn odometry_drifts_from_truth_with_noise_and_slip() {
         let w = open_world();
-        let params = DiffDriveParams { slip_mean: 0.05, slip_sigma: 0.02, ..DiffDriveParams::default() };
+        let params = DiffDriveParams {
+            slip_mean: 0.05,
+            slip_sigma: 0.02,
+            ..DiffDriveParams::default()
+        };
         let mut r = RobotSim::new(params, Pose2::default(), 9);
         for _ in 0..100 {
             r.step(0.5, 0.0, 0.1, &w);
@@ -284,7 +339,8 @@ mod tests {
 
     #[test]
     fn wall_stops_robot_and_sets_bumper() {
-        let w = World::from_toml_str("[area]\nmin=[0.0,0.0]\nmax=[3.0,2.0]\n", Path::new("w")).unwrap();
+        let w =
+            World::from_toml_str("[area]\nmin=[0.0,0.0]\nmax=[3.0,2.0]\n", Path::new("w")).unwrap();
         let mut r = RobotSim::new(noiseless(), Pose2::new(1.0, 1.0, 0.0), 1);
         let mut bumped = false;
         for _ in 0..100 {

@@ -25,8 +25,8 @@ pub mod xbee;
 
 pub use error::SimError;
 pub use geometry::{Point, Polygon, Segment};
+pub use kinematics::{integrate_unicycle, DiffDriveParams, RobotSim, StepOutcome};
 pub use metrics::{ErrorStats, Summary, TimedPose, TrialResult};
 pub use report::Report;
 pub use scenario::{Pipeline, Scenario, ScenarioSpec};
-pub use kinematics::{integrate_unicycle, DiffDriveParams, RobotSim, StepOutcome};
 pub use world::{World, WorldSpec};

@@ -95,7 +95,10 @@ pub fn trajectory_errors(truth: &[TimedPose], estimate: &[TimedPose]) -> Option<
 /// First time the truth comes within `tolerance` of `goal`.
 #[must_use]
 pub fn time_to_goal(truth: &[TimedPose], goal: &Point, tolerance: f64) -> Option<f64> {
-    truth.iter().find(|p| Point::new(p.pose.x, p.pose.y).distance(goal) <= tolerance).map(|p| p.t)
+    truth
+        .iter()
+        .find(|p| Point::new(p.pose.x, p.pose.y).distance(goal) <= tolerance)
+        .map(|p| p.t)
 }
 
 /// Root mean square distance between paired points (e.g. estimated vs true beacons).
@@ -167,7 +170,11 @@ impl Summary {
         let extra = names
             .into_iter()
             .filter_map(|k| {
-                let m = mean(results.iter().flat_map(|r| r.extra.iter().filter(|(n, _)| *n == k).map(|(_, v)| *v)));
+                let m = mean(
+                    results
+                        .iter()
+                        .flat_map(|r| r.extra.iter().filter(|(n, _)| *n == k).map(|(_, v)| *v)),
+                );
                 m.map(|m| (k, m))
             })
             .collect();
@@ -181,7 +188,12 @@ impl Summary {
             rmse_theta_rad: mean(errs().map(|e| e.rmse_theta)),
             mean_theta_error_rad: mean(errs().map(|e| e.mean_theta)),
             worst_theta_error_rad: errs().map(|e| e.max_theta).reduce(f64::max),
-            time_to_goal: mean(results.iter().filter(|r| r.success).filter_map(|r| r.time_to_goal)),
+            time_to_goal: mean(
+                results
+                    .iter()
+                    .filter(|r| r.success)
+                    .filter_map(|r| r.time_to_goal),
+            ),
             extra,
         }
     }
@@ -215,27 +227,49 @@ mod tests {
     use super::*;
 
     fn line(n: usize, dy: f64) -> Vec<TimedPose> {
-        (0..n).map(|i| TimedPose::new(i as f64, Pose2::new(i as f64, dy, 0.0))).collect()
+        (0..n)
+            .map(|i| TimedPose::new(i as f64, Pose2::new(i as f64, dy, 0.0)))
+            .collect()
     }
 
     #[test]
     fn constant_offset_gives_equal_rmse_mean_max() {
         let e = trajectory_errors(&line(10, 0.0), &line(10, 0.3)).unwrap();
         assert_eq!(e.n, 10);
-        assert!((e.rmse - 0.3).abs() < 1e-12 && (e.mean - 0.3).abs() < 1e-12 && (e.max - 0.3).abs() < 1e-12);
+        assert!(
+            (e.rmse - 0.3).abs() < 1e-12
+                && (e.mean - 0.3).abs() < 1e-12
+                && (e.max - 0.3).abs() < 1e-12
+        );
     }
 
     #[test]
     fn rmse_exceeds_mean_for_uneven_errors() {
         let truth = line(4, 0.0);
-        let est: Vec<TimedPose> = truth.iter().enumerate().map(|(i, p)| TimedPose::new(p.t, Pose2::new(p.pose.x, if i == 3 { 4.0 } else { 0.0 }, 0.0))).collect();
+        let est: Vec<TimedPose> = truth
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                TimedPose::new(
+                    p.t,
+                    Pose2::new(p.pose.x, if i == 3 { 4.0 } else { 0.0 }, 0.0),
+                )
+            })
+            .collect();
         let e = trajectory_errors(&truth, &est).unwrap();
-        assert!((e.mean - 1.0).abs() < 1e-12 && (e.rmse - 2.0).abs() < 1e-12 && (e.max - 4.0).abs() < 1e-12);
+        assert!(
+            (e.mean - 1.0).abs() < 1e-12
+                && (e.rmse - 2.0).abs() < 1e-12
+                && (e.max - 4.0).abs() < 1e-12
+        );
     }
 
     #[test]
     fn truth_is_interpolated_between_samples() {
-        let truth = vec![TimedPose::new(0.0, Pose2::new(0.0, 0.0, 3.0)), TimedPose::new(2.0, Pose2::new(2.0, 0.0, -3.0))];
+        let truth = vec![
+            TimedPose::new(0.0, Pose2::new(0.0, 0.0, 3.0)),
+            TimedPose::new(2.0, Pose2::new(2.0, 0.0, -3.0)),
+        ];
         let p = interpolate(&truth, 1.0).unwrap();
         assert!((p.x - 1.0).abs() < 1e-12);
         // Heading interpolated across ±π, not through 0.
@@ -250,19 +284,38 @@ mod tests {
         let r = |t: Option<f64>, rm: f64| TrialResult {
             trial: 0,
             seed: 0,
-            errors: Some(ErrorStats { n: 1, rmse: rm, mean: rm, max: 2.0 * rm, rmse_theta: 0.0, mean_theta: 0.1, max_theta: rm }),
+            errors: Some(ErrorStats {
+                n: 1,
+                rmse: rm,
+                mean: rm,
+                max: 2.0 * rm,
+                rmse_theta: 0.0,
+                mean_theta: 0.1,
+                max_theta: rm,
+            }),
             time_to_goal: t,
             success: t.is_some(),
             extra: vec![("beacon_rmse_1_m".into(), rm)],
         };
         let s = Summary::from_trials(&[r(Some(10.0), 0.2), r(None, 0.4)]);
         assert_eq!((s.trials, s.successes), (2, 1));
-        assert!((s.rmse_m.unwrap() - 0.3).abs() < 1e-12 && (s.max_error_m.unwrap() - 0.6).abs() < 1e-12);
+        assert!(
+            (s.rmse_m.unwrap() - 0.3).abs() < 1e-12 && (s.max_error_m.unwrap() - 0.6).abs() < 1e-12
+        );
         assert_eq!(s.time_to_goal, Some(10.0));
         assert_eq!(s.worst_error_m, Some(0.8));
         assert_eq!(s.worst_theta_error_rad, Some(0.4));
-        assert!(s.metrics().iter().any(|(k, v)| k == "failures" && *v == 1.0));
-        assert!(s.metrics().iter().any(|(k, v)| k == "beacon_rmse_1_m" && (*v - 0.3).abs() < 1e-12));
-        assert_eq!(rmse_points(&[(Point::new(0.0, 0.0), Point::new(3.0, 4.0))]), Some(5.0));
+        assert!(s
+            .metrics()
+            .iter()
+            .any(|(k, v)| k == "failures" && *v == 1.0));
+        assert!(s
+            .metrics()
+            .iter()
+            .any(|(k, v)| k == "beacon_rmse_1_m" && (*v - 0.3).abs() < 1e-12));
+        assert_eq!(
+            rmse_points(&[(Point::new(0.0, 0.0), Point::new(3.0, 4.0))]),
+            Some(5.0)
+        );
     }
 }

@@ -26,14 +26,19 @@ impl ReflectorPattern {
         let b = 10f64.powf(back_lobe_db / 10.0).clamp(0.0, 0.49);
         let half = (0.5 * hpbw_deg).to_radians();
         let base = (1.0 + half.cos()) / 2.0;
-        Self { exponent: ((0.5 - b) / (1.0 - b)).ln() / base.ln(), back_lobe_db }
+        Self {
+            exponent: ((0.5 - b) / (1.0 - b)).ln() / base.ln(),
+            back_lobe_db,
+        }
     }
 
     /// Gain in dB relative to boresight at `alpha` radians off boresight.
     #[must_use]
     pub fn gain_db(&self, alpha: f64) -> f64 {
         let b = 10f64.powf(self.back_lobe_db / 10.0).clamp(0.0, 1.0);
-        let lobe = ((1.0 + alpha.cos()) / 2.0).max(0.0).powf(self.exponent.max(0.0));
+        let lobe = ((1.0 + alpha.cos()) / 2.0)
+            .max(0.0)
+            .powf(self.exponent.max(0.0));
         10.0 * (b + (1.0 - b) * lobe).log10()
     }
 

@@ -23,7 +23,11 @@ pub struct Published {
 }
 
 const fn m(key: &'static str, value: f64, note: &'static str) -> PublishedMetric {
-    PublishedMetric { key, value: Some(value), note }
+    PublishedMetric {
+        key,
+        value: Some(value),
+        note,
+    }
 }
 
 /// Every scenario with published numbers.
@@ -131,22 +135,47 @@ mod tests {
     fn table_4_9_means_recomputed_from_rows() {
         // Seed 000 Table 4.9 rows: (max loc error, RMS loc error, time to goal).
         let rows = [
-            (0.263108, 0.113088, 28.0), (1.373005, 0.408296, 44.0), (0.277988, 0.115034, 45.0),
-            (0.266809, 0.127836, 21.0), (1.209967, 0.339866, 20.0), (2.573254, 0.962738, 85.0),
-            (1.209967, 0.339866, 20.0), (0.770608, 0.289507, 77.0), (0.396196, 0.175624, 30.0),
-            (0.84493, 0.253016, 182.0), (2.651533, 0.997474, 43.0), (0.564744, 0.213986, 57.0),
-            (0.318143, 0.180671, 37.0), (0.948004, 0.246589, 89.0), (1.656564, 0.412161, 71.0),
-            (0.832765, 0.18374, 51.0), (3.670778, 0.858748, 488.0), (0.355889, 0.167153, 48.0),
-            (0.407162, 0.143514, 41.0), (0.663023, 0.229172, 114.0),
+            (0.263108, 0.113088, 28.0),
+            (1.373005, 0.408296, 44.0),
+            (0.277988, 0.115034, 45.0),
+            (0.266809, 0.127836, 21.0),
+            (1.209967, 0.339866, 20.0),
+            (2.573254, 0.962738, 85.0),
+            (1.209967, 0.339866, 20.0),
+            (0.770608, 0.289507, 77.0),
+            (0.396196, 0.175624, 30.0),
+            (0.84493, 0.253016, 182.0),
+            (2.651533, 0.997474, 43.0),
+            (0.564744, 0.213986, 57.0),
+            (0.318143, 0.180671, 37.0),
+            (0.948004, 0.246589, 89.0),
+            (1.656564, 0.412161, 71.0),
+            (0.832765, 0.18374, 51.0),
+            (3.670778, 0.858748, 488.0),
+            (0.355889, 0.167153, 48.0),
+            (0.407162, 0.143514, 41.0),
+            (0.663023, 0.229172, 114.0),
         ];
         let n = rows.len() as f64;
         let max_mean: f64 = rows.iter().map(|r| r.0).sum::<f64>() / n;
         let rms_mean: f64 = rows.iter().map(|r| r.1).sum::<f64>() / n;
         assert!((max_mean - 1.0627218).abs() < 1e-6);
         assert!((rms_mean - 0.33790395).abs() < 1e-6);
-        let ok_time: f64 = rows.iter().enumerate().filter(|(i, _)| *i != 9 && *i != 16).map(|(_, r)| r.2).sum::<f64>() / 18.0;
+        let ok_time: f64 = rows
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| *i != 9 && *i != 16)
+            .map(|(_, r)| r.2)
+            .sum::<f64>()
+            / 18.0;
         let p = for_scenario("seed000-sim").unwrap();
-        let get = |k| p.metrics.iter().find(|m| m.key == k).and_then(|m| m.value).unwrap();
+        let get = |k| {
+            p.metrics
+                .iter()
+                .find(|m| m.key == k)
+                .and_then(|m| m.value)
+                .unwrap()
+        };
         assert!((get("time_to_goal") - ok_time).abs() < 0.01);
         assert!((get("rmse_m") - rms_mean).abs() < 0.001);
         assert!((get("max_error_m") - max_mean).abs() < 0.001);

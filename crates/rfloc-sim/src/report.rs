@@ -40,15 +40,30 @@ impl Report {
         let pubd = published::for_scenario(scenario);
         if let Some(p) = pubd {
             for m in p.metrics {
-                rows.push(ReportRow { metric: m.key.to_string(), rfloc: find(m.key), published: Some(m.value), note: m.note.to_string() });
+                rows.push(ReportRow {
+                    metric: m.key.to_string(),
+                    rfloc: find(m.key),
+                    published: Some(m.value),
+                    note: m.note.to_string(),
+                });
             }
         }
         for (k, v) in &ours {
             if !rows.iter().any(|r| &r.metric == k) {
-                rows.push(ReportRow { metric: k.clone(), rfloc: Some(*v), published: None, note: String::new() });
+                rows.push(ReportRow {
+                    metric: k.clone(),
+                    rfloc: Some(*v),
+                    published: None,
+                    note: String::new(),
+                });
             }
         }
-        Report { scenario: scenario.to_string(), source: pubd.map_or_else(String::new, |p| p.source.to_string()), trials: summary.trials, rows }
+        Report {
+            scenario: scenario.to_string(),
+            source: pubd.map_or_else(String::new, |p| p.source.to_string()),
+            trials: summary.trials,
+            rows,
+        }
     }
 
     /// A plain-text table (Markdown pipe table).
@@ -60,7 +75,10 @@ impl Report {
         if !self.source.is_empty() {
             let _ = writeln!(s, "published: {}", self.source);
         }
-        let _ = writeln!(s, "| metric | rfloc | published | rfloc − published | note |");
+        let _ = writeln!(
+            s,
+            "| metric | rfloc | published | rfloc − published | note |"
+        );
         let _ = writeln!(s, "|---|---:|---:|---:|---|");
         for r in &self.rows {
             let p = match r.published {
@@ -72,7 +90,15 @@ impl Report {
                 (Some(a), Some(Some(b))) => format!("{:+.4}", a - b),
                 _ => "—".to_string(),
             };
-            let _ = writeln!(s, "| {} | {} | {} | {} | {} |", r.metric, fmt(r.rfloc), p, d, r.note);
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} |",
+                r.metric,
+                fmt(r.rfloc),
+                p,
+                d,
+                r.note
+            );
         }
         s
     }
@@ -91,44 +117,85 @@ pub struct PlotData<'a> {
 }
 
 fn esc(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
 }
 
 /// Renders the world and trajectories as a standalone SVG document (y up, 1 m = `scale` px).
 #[must_use]
 pub fn svg(world: &World, data: &PlotData<'_>, scale: f64) -> String {
     let margin = 30.0;
-    let (minx, miny, maxx, maxy) = (world.area_min.x, world.area_min.y, world.area_max.x, world.area_max.y);
+    let (minx, miny, maxx, maxy) = (
+        world.area_min.x,
+        world.area_min.y,
+        world.area_max.x,
+        world.area_max.y,
+    );
     let w = (maxx - minx) * scale + 2.0 * margin;
     let h = (maxy - miny) * scale + 2.0 * margin + 20.0;
-    let px = |p: Point| (margin + (p.x - minx) * scale, 20.0 + margin + (maxy - p.y) * scale);
+    let px = |p: Point| {
+        (
+            margin + (p.x - minx) * scale,
+            20.0 + margin + (maxy - p.y) * scale,
+        )
+    };
     let mut s = String::new();
-    let _ = writeln!(s, r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w:.0}" height="{h:.0}" viewBox="0 0 {w:.1} {h:.1}">"#);
+    let _ = writeln!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w:.0}" height="{h:.0}" viewBox="0 0 {w:.1} {h:.1}">"#
+    );
     let _ = writeln!(s, r#"<rect width="100%" height="100%" fill="white"/>"#);
-    let _ = writeln!(s, r#"<text x="{margin}" y="20" font-family="sans-serif" font-size="14">{}</text>"#, esc(&data.title));
+    let _ = writeln!(
+        s,
+        r#"<text x="{margin}" y="20" font-family="sans-serif" font-size="14">{}</text>"#,
+        esc(&data.title)
+    );
     // 1 m grid
     let _ = writeln!(s, r##"<g stroke="#e0e0e0" stroke-width="1">"##);
     let mut gx = minx.ceil();
     while gx <= maxx {
         let (a, b) = (px(Point::new(gx, miny)), px(Point::new(gx, maxy)));
-        let _ = writeln!(s, r#"<line x1="{:.1}" y1="{:.1}" x2="{:.1}" y2="{:.1}"/>"#, a.0, a.1, b.0, b.1);
+        let _ = writeln!(
+            s,
+            r#"<line x1="{:.1}" y1="{:.1}" x2="{:.1}" y2="{:.1}"/>"#,
+            a.0, a.1, b.0, b.1
+        );
         gx += 1.0;
     }
     let mut gy = miny.ceil();
     while gy <= maxy {
         let (a, b) = (px(Point::new(minx, gy)), px(Point::new(maxx, gy)));
-        let _ = writeln!(s, r#"<line x1="{:.1}" y1="{:.1}" x2="{:.1}" y2="{:.1}"/>"#, a.0, a.1, b.0, b.1);
+        let _ = writeln!(
+            s,
+            r#"<line x1="{:.1}" y1="{:.1}" x2="{:.1}" y2="{:.1}"/>"#,
+            a.0, a.1, b.0, b.1
+        );
         gy += 1.0;
     }
     let _ = writeln!(s, "</g>");
     for o in &world.obstacles {
-        let pts: Vec<String> = o.vertices.iter().map(|v| px(*v)).map(|(x, y)| format!("{x:.1},{y:.1}")).collect();
-        let _ = writeln!(s, r##"<polygon points="{}" fill="#c8c8c8"/>"##, pts.join(" "));
+        let pts: Vec<String> = o
+            .vertices
+            .iter()
+            .map(|v| px(*v))
+            .map(|(x, y)| format!("{x:.1},{y:.1}"))
+            .collect();
+        let _ = writeln!(
+            s,
+            r##"<polygon points="{}" fill="#c8c8c8"/>"##,
+            pts.join(" ")
+        );
     }
     let _ = writeln!(s, r##"<g stroke="black" stroke-width="2">"##);
     for wall in &world.walls {
         let (a, b) = (px(wall.a), px(wall.b));
-        let _ = writeln!(s, r#"<line x1="{:.1}" y1="{:.1}" x2="{:.1}" y2="{:.1}"/>"#, a.0, a.1, b.0, b.1);
+        let _ = writeln!(
+            s,
+            r#"<line x1="{:.1}" y1="{:.1}" x2="{:.1}" y2="{:.1}"/>"#,
+            a.0, a.1, b.0, b.1
+        );
     }
     let _ = writeln!(s, "</g>");
     let _ = writeln!(s, r##"<g fill="none" stroke="#d04040" stroke-width="1">"##);
@@ -139,35 +206,91 @@ pub fn svg(world: &World, data: &PlotData<'_>, scale: f64) -> String {
     let _ = writeln!(s, "</g>");
     for t in &world.hf_tags {
         let (x, y) = px(t.position);
-        let _ = writeln!(s, r##"<rect x="{:.1}" y="{:.1}" width="4" height="4" fill="#8040c0"/>"##, x - 2.0, y - 2.0);
+        let _ = writeln!(
+            s,
+            r##"<rect x="{:.1}" y="{:.1}" width="4" height="4" fill="#8040c0"/>"##,
+            x - 2.0,
+            y - 2.0
+        );
     }
     for b in &world.beacons {
         let (x, y) = px(b.position);
-        let _ = writeln!(s, r##"<circle cx="{x:.1}" cy="{y:.1}" r="6" fill="#30a030"/><text x="{:.1}" y="{:.1}" font-family="sans-serif" font-size="11">{}</text>"##, x + 8.0, y - 8.0, esc(&b.ni));
+        let _ = writeln!(
+            s,
+            r##"<circle cx="{x:.1}" cy="{y:.1}" r="6" fill="#30a030"/><text x="{:.1}" y="{:.1}" font-family="sans-serif" font-size="11">{}</text>"##,
+            x + 8.0,
+            y - 8.0,
+            esc(&b.ni)
+        );
     }
     if let Some(e) = &world.emitter {
         let (x, y) = px(e.position);
-        let _ = writeln!(s, r##"<circle cx="{x:.1}" cy="{y:.1}" r="7" fill="#f0a000" stroke="black"/><text x="{:.1}" y="{:.1}" font-family="sans-serif" font-size="11">emitter</text>"##, x + 9.0, y - 9.0);
+        let _ = writeln!(
+            s,
+            r##"<circle cx="{x:.1}" cy="{y:.1}" r="7" fill="#f0a000" stroke="black"/><text x="{:.1}" y="{:.1}" font-family="sans-serif" font-size="11">emitter</text>"##,
+            x + 9.0,
+            y - 9.0
+        );
     }
     for wp in &data.waypoints {
         let (x, y) = px(*wp);
-        let _ = writeln!(s, r##"<polygon points="{:.1},{:.1} {:.1},{:.1} {:.1},{:.1} {:.1},{:.1}" fill="#e02020"/>"##, x, y - 6.0, x + 6.0, y, x, y + 6.0, x - 6.0, y);
+        let _ = writeln!(
+            s,
+            r##"<polygon points="{:.1},{:.1} {:.1},{:.1} {:.1},{:.1} {:.1},{:.1}" fill="#e02020"/>"##,
+            x,
+            y - 6.0,
+            x + 6.0,
+            y,
+            x,
+            y + 6.0,
+            x - 6.0,
+            y
+        );
     }
     let path = |traj: &[TimedPose]| -> String {
-        traj.iter().map(|p| px(Point::new(p.pose.x, p.pose.y))).map(|(x, y)| format!("{x:.1},{y:.1}")).collect::<Vec<_>>().join(" ")
+        traj.iter()
+            .map(|p| px(Point::new(p.pose.x, p.pose.y)))
+            .map(|(x, y)| format!("{x:.1},{y:.1}"))
+            .collect::<Vec<_>>()
+            .join(" ")
     };
     if !data.truth.is_empty() {
-        let _ = writeln!(s, r##"<polyline points="{}" fill="none" stroke="#2060d0" stroke-width="2"/>"##, path(data.truth));
+        let _ = writeln!(
+            s,
+            r##"<polyline points="{}" fill="none" stroke="#2060d0" stroke-width="2"/>"##,
+            path(data.truth)
+        );
     }
     if !data.estimate.is_empty() {
-        let _ = writeln!(s, r##"<polyline points="{}" fill="none" stroke="#e07000" stroke-width="1.5" stroke-dasharray="5,3"/>"##, path(data.estimate));
+        let _ = writeln!(
+            s,
+            r##"<polyline points="{}" fill="none" stroke="#e07000" stroke-width="1.5" stroke-dasharray="5,3"/>"##,
+            path(data.estimate)
+        );
     }
     for (label, p) in &data.marks {
         let (x, y) = px(*p);
-        let _ = writeln!(s, r##"<path d="M{:.1},{:.1} L{:.1},{:.1} M{:.1},{:.1} L{:.1},{:.1}" stroke="#e07000" stroke-width="2"/><text x="{:.1}" y="{:.1}" font-family="sans-serif" font-size="10">{}</text>"##, x - 5.0, y - 5.0, x + 5.0, y + 5.0, x - 5.0, y + 5.0, x + 5.0, y - 5.0, x + 7.0, y + 12.0, esc(label));
+        let _ = writeln!(
+            s,
+            r##"<path d="M{:.1},{:.1} L{:.1},{:.1} M{:.1},{:.1} L{:.1},{:.1}" stroke="#e07000" stroke-width="2"/><text x="{:.1}" y="{:.1}" font-family="sans-serif" font-size="10">{}</text>"##,
+            x - 5.0,
+            y - 5.0,
+            x + 5.0,
+            y + 5.0,
+            x - 5.0,
+            y + 5.0,
+            x + 5.0,
+            y - 5.0,
+            x + 7.0,
+            y + 12.0,
+            esc(label)
+        );
     }
     let ly = h - 8.0;
-    let _ = writeln!(s, r##"<text x="{margin}" y="{ly:.0}" font-family="sans-serif" font-size="11"><tspan fill="#2060d0">— truth</tspan>  <tspan fill="#e07000">- - estimate</tspan></text>"##);
+    let _ = writeln!(
+        s,
+        r##"<text x="{margin}" y="{ly:.0}" font-family="sans-serif" font-size="11"><tspan fill="#2060d0">— truth</tspan>  <tspan fill="#e07000">- - estimate</tspan></text>"##
+    );
     s.push_str("</svg>\n");
     s
 }
@@ -184,7 +307,15 @@ mod tests {
         let r = TrialResult {
             trial: 0,
             seed: 1,
-            errors: Some(ErrorStats { n: 10, rmse: 0.5, mean: 0.4, max: 1.0, rmse_theta: 0.05, mean_theta: 0.04, max_theta: 0.1 }),
+            errors: Some(ErrorStats {
+                n: 10,
+                rmse: 0.5,
+                mean: 0.4,
+                max: 1.0,
+                rmse_theta: 0.05,
+                mean_theta: 0.04,
+                max_theta: 0.1,
+            }),
             time_to_goal: None,
             success: true,
             extra: vec![("beacon_rmse_1_m".into(), 0.3)],
@@ -193,10 +324,15 @@ mod tests {
         let t = rep.table();
         assert!(t.contains("Table 3.2"), "{t}");
         assert!(t.contains("| rmse_m | 0.5000 | 0.6900 | -0.1900 |"), "{t}");
-        assert!(t.contains("| beacon_rmse_1_m | 0.3000 | 0.3600 | -0.0600 |"), "{t}");
+        assert!(
+            t.contains("| beacon_rmse_1_m | 0.3000 | 0.3600 | -0.0600 |"),
+            "{t}"
+        );
         assert!(t.contains("| beacon_rmse_2_m | — | 0.3200 | — |"), "{t}");
         let e = Report::new("seed001-e", &Summary::from_trials(&[]));
-        assert!(e.table().contains("| time_to_goal_preliminary | — | not completed |"));
+        assert!(e
+            .table()
+            .contains("| time_to_goal_preliminary | — | not completed |"));
     }
 
     #[test]
@@ -206,9 +342,20 @@ mod tests {
             Path::new("w"),
         )
         .unwrap();
-        let truth: Vec<TimedPose> = (0..5).map(|i| TimedPose::new(f64::from(i), Pose2::new(0.5 + 0.5 * f64::from(i), 0.5, 0.0))).collect();
+        let truth: Vec<TimedPose> = (0..5)
+            .map(|i| TimedPose::new(f64::from(i), Pose2::new(0.5 + 0.5 * f64::from(i), 0.5, 0.0)))
+            .collect();
         let est = truth.clone();
-        let s = svg(&w, &PlotData { truth: &truth, estimate: &est, title: "t & t".into(), ..PlotData::default() }, 100.0);
+        let s = svg(
+            &w,
+            &PlotData {
+                truth: &truth,
+                estimate: &est,
+                title: "t & t".into(),
+                ..PlotData::default()
+            },
+            100.0,
+        );
         assert!(s.starts_with("<svg") && s.trim_end().ends_with("</svg>"));
         assert_eq!(s.matches("<polyline").count(), 2);
         assert_eq!(s.matches("<polygon").count(), 1);

@@ -30,7 +30,14 @@ pub struct RangeScanner {
 
 impl Default for RangeScanner {
     fn default() -> Self {
-        Self { beams: 683, fov_deg: 240.0, min_range: 0.02, max_range: 5.6, noise_sigma: 0.01, mount_offset: 0.0 }
+        Self {
+            beams: 683,
+            fov_deg: 240.0,
+            min_range: 0.02,
+            max_range: 5.6,
+            noise_sigma: 0.01,
+            mount_offset: 0.0,
+        }
     }
 }
 
@@ -66,10 +73,15 @@ impl RangeScanner {
                 match world.ray_cast(&origin, robot.theta + angle) {
                     Some(d) if d <= self.max_range => Beam {
                         angle,
-                        range: (d + gaussian(rng, self.noise_sigma)).clamp(self.min_range, self.max_range),
+                        range: (d + gaussian(rng, self.noise_sigma))
+                            .clamp(self.min_range, self.max_range),
                         hit: true,
                     },
-                    _ => Beam { angle, range: self.max_range, hit: false },
+                    _ => Beam {
+                        angle,
+                        range: self.max_range,
+                        hit: false,
+                    },
                 }
             })
             .collect()
@@ -116,23 +128,42 @@ mod tests {
 
     #[test]
     fn noiseless_scan_matches_known_walls() {
-        let s = RangeScanner { noise_sigma: 0.0, beams: 241, ..RangeScanner::default() };
+        let s = RangeScanner {
+            noise_sigma: 0.0,
+            beams: 241,
+            ..RangeScanner::default()
+        };
         let mut rng = ChaCha8Rng::seed_from_u64(1);
         let scan = s.scan(&room(), &Pose2::new(1.0, 1.0, 0.0), &mut rng);
         let centre = &scan[120];
         assert!(centre.angle.abs() < 1e-12 && (centre.range - 3.0).abs() < 1e-12 && centre.hit);
         // 90° left: wall y = 3 is 2 m away; 90° right: wall y = 0 is 1 m away.
-        let left = scan.iter().find(|b| (b.angle - std::f64::consts::FRAC_PI_2).abs() < 1e-9).unwrap();
-        let right = scan.iter().find(|b| (b.angle + std::f64::consts::FRAC_PI_2).abs() < 1e-9).unwrap();
+        let left = scan
+            .iter()
+            .find(|b| (b.angle - std::f64::consts::FRAC_PI_2).abs() < 1e-9)
+            .unwrap();
+        let right = scan
+            .iter()
+            .find(|b| (b.angle + std::f64::consts::FRAC_PI_2).abs() < 1e-9)
+            .unwrap();
         assert!((left.range - 2.0).abs() < 1e-9 && (right.range - 1.0).abs() < 1e-9);
         // 45° left: hits y = 3 at x = 3 → 2√2.
-        let diag = scan.iter().find(|b| (b.angle - std::f64::consts::FRAC_PI_4).abs() < 1e-9).unwrap();
+        let diag = scan
+            .iter()
+            .find(|b| (b.angle - std::f64::consts::FRAC_PI_4).abs() < 1e-9)
+            .unwrap();
         assert!((diag.range - 2.0 * 2f64.sqrt()).abs() < 1e-9);
     }
 
     #[test]
     fn out_of_range_beams_report_max() {
-        let s = RangeScanner { noise_sigma: 0.0, max_range: 2.5, beams: 3, fov_deg: 180.0, ..RangeScanner::default() };
+        let s = RangeScanner {
+            noise_sigma: 0.0,
+            max_range: 2.5,
+            beams: 3,
+            fov_deg: 180.0,
+            ..RangeScanner::default()
+        };
         let mut rng = ChaCha8Rng::seed_from_u64(1);
         let scan = s.scan(&room(), &Pose2::new(1.0, 1.0, 0.0), &mut rng);
         assert!(!scan[1].hit && (scan[1].range - 2.5).abs() < 1e-12);
@@ -142,19 +173,55 @@ mod tests {
     #[test]
     fn noisy_scan_is_seeded_and_spread_as_configured() {
         let s = RangeScanner::default();
-        let a = s.scan(&room(), &Pose2::new(2.0, 1.5, 0.3), &mut ChaCha8Rng::seed_from_u64(4));
-        let b = s.scan(&room(), &Pose2::new(2.0, 1.5, 0.3), &mut ChaCha8Rng::seed_from_u64(4));
+        let a = s.scan(
+            &room(),
+            &Pose2::new(2.0, 1.5, 0.3),
+            &mut ChaCha8Rng::seed_from_u64(4),
+        );
+        let b = s.scan(
+            &room(),
+            &Pose2::new(2.0, 1.5, 0.3),
+            &mut ChaCha8Rng::seed_from_u64(4),
+        );
         assert_eq!(a, b);
-        let clean = RangeScanner { noise_sigma: 0.0, ..s }.scan(&room(), &Pose2::new(2.0, 1.5, 0.3), &mut ChaCha8Rng::seed_from_u64(4));
-        let var = a.iter().zip(&clean).map(|(n, c)| (n.range - c.range).powi(2)).sum::<f64>() / a.len() as f64;
+        let clean = RangeScanner {
+            noise_sigma: 0.0,
+            ..s
+        }
+        .scan(
+            &room(),
+            &Pose2::new(2.0, 1.5, 0.3),
+            &mut ChaCha8Rng::seed_from_u64(4),
+        );
+        let var = a
+            .iter()
+            .zip(&clean)
+            .map(|(n, c)| (n.range - c.range).powi(2))
+            .sum::<f64>()
+            / a.len() as f64;
         assert!((var.sqrt() - 0.01).abs() < 0.002, "{}", var.sqrt());
     }
 
     #[test]
     fn bumpers_front_and_rear() {
         let w = room();
-        assert_eq!(bumpers(&w, &Pose2::new(3.79, 1.5, 0.0), 0.2, 0.02), BumperState { front: true, rear: false });
-        assert_eq!(bumpers(&w, &Pose2::new(3.79, 1.5, std::f64::consts::PI), 0.2, 0.02), BumperState { front: false, rear: true });
-        assert_eq!(bumpers(&w, &Pose2::new(2.0, 1.5, 0.0), 0.2, 0.02), BumperState::default());
+        assert_eq!(
+            bumpers(&w, &Pose2::new(3.79, 1.5, 0.0), 0.2, 0.02),
+            BumperState {
+                front: true,
+                rear: false
+            }
+        );
+        assert_eq!(
+            bumpers(&w, &Pose2::new(3.79, 1.5, std::f64::consts::PI), 0.2, 0.02),
+            BumperState {
+                front: false,
+                rear: true
+            }
+        );
+        assert_eq!(
+            bumpers(&w, &Pose2::new(2.0, 1.5, 0.0), 0.2, 0.02),
+            BumperState::default()
+        );
     }
 }

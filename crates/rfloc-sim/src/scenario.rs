@@ -170,13 +170,21 @@ pub struct Scenario {
 }
 
 fn invalid(path: &Path, text: &str, key: &str, message: impl Into<String>) -> SimError {
-    SimError::Invalid { path: path.to_path_buf(), line: find_key_line(text, key), key: key.to_string(), message: message.into() }
+    SimError::Invalid {
+        path: path.to_path_buf(),
+        line: find_key_line(text, key),
+        key: key.to_string(),
+        message: message.into(),
+    }
 }
 
 impl Scenario {
     /// Reads, parses and validates a scenario file (and its world file).
     pub fn load(path: &Path) -> Result<Scenario, SimError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SimError::Io { path: path.to_path_buf(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| SimError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
         Scenario::from_toml_str(&text, path)
     }
 
@@ -189,9 +197,20 @@ impl Scenario {
                 World::load(&wp)?
             }
             (None, Some(w)) => World::resolve(w, text, path)?,
-            _ => return Err(invalid(path, text, "world_file", "give exactly one of `world_file` or `[world]`")),
+            _ => {
+                return Err(invalid(
+                    path,
+                    text,
+                    "world_file",
+                    "give exactly one of `world_file` or `[world]`",
+                ))
+            }
         };
-        let s = Scenario { spec, world, path: path.to_path_buf() };
+        let s = Scenario {
+            spec,
+            world,
+            path: path.to_path_buf(),
+        };
         s.validate(text)?;
         Ok(s)
     }
@@ -213,25 +232,58 @@ impl Scenario {
         }
         let st = sp.robot.start;
         let r = sp.robot.drive.body_radius;
-        if !sp.robot.random_start && (!self.in_area(st.x, st.y) || self.world.disk_collides(&Point::new(st.x, st.y), r)) {
-            return Err(invalid(p, text, "start", "start must be inside the area and clear of walls"));
+        if !sp.robot.random_start
+            && (!self.in_area(st.x, st.y) || self.world.disk_collides(&Point::new(st.x, st.y), r))
+        {
+            return Err(invalid(
+                p,
+                text,
+                "start",
+                "start must be inside the area and clear of walls",
+            ));
         }
         if let Some(g) = sp.goal {
-            if !self.in_area(g.x, g.y) || !(g.tolerance_m.is_finite() && g.tolerance_m > 0.0) {
-                return Err(invalid(p, text, "goal", "goal must be inside the area with a positive tolerance"));
+            if !(self.in_area(g.x, g.y) && g.tolerance_m.is_finite() && g.tolerance_m > 0.0) {
+                return Err(invalid(
+                    p,
+                    text,
+                    "goal",
+                    "goal must be inside the area with a positive tolerance",
+                ));
             }
         }
         if let Some(w) = sp.waypoints.iter().find(|w| !self.in_area(w[0], w[1])) {
-            return Err(invalid(p, text, "waypoints", format!("{w:?} is outside the area")));
+            return Err(invalid(
+                p,
+                text,
+                "waypoints",
+                format!("{w:?} is outside the area"),
+            ));
         }
         match sp.pipeline {
-            Pipeline::Snapshot if self.world.uhf_tags.is_empty() => Err(invalid(p, text, "pipeline", "snapshot needs [uhf_tags]")),
-            Pipeline::HfInit if self.world.hf_tags.is_empty() => Err(invalid(p, text, "pipeline", "hf-init needs [hf_grid]")),
-            Pipeline::EkfSlam if self.world.beacons.is_empty() || sp.waypoints.is_empty() => {
-                Err(invalid(p, text, "pipeline", "ekf-slam needs [[xbee_beacons]] and waypoints"))
+            Pipeline::Snapshot if self.world.uhf_tags.is_empty() => {
+                Err(invalid(p, text, "pipeline", "snapshot needs [uhf_tags]"))
             }
-            Pipeline::EmitterPreliminary | Pipeline::EmitterFull if self.world.emitter.is_none() => {
-                Err(invalid(p, text, "pipeline", "emitter pipelines need [emitter]"))
+            Pipeline::HfInit if self.world.hf_tags.is_empty() => {
+                Err(invalid(p, text, "pipeline", "hf-init needs [hf_grid]"))
+            }
+            Pipeline::EkfSlam if self.world.beacons.is_empty() || sp.waypoints.is_empty() => {
+                Err(invalid(
+                    p,
+                    text,
+                    "pipeline",
+                    "ekf-slam needs [[xbee_beacons]] and waypoints",
+                ))
+            }
+            Pipeline::EmitterPreliminary | Pipeline::EmitterFull
+                if self.world.emitter.is_none() =>
+            {
+                Err(invalid(
+                    p,
+                    text,
+                    "pipeline",
+                    "emitter pipelines need [emitter]",
+                ))
             }
             _ => Ok(()),
         }
@@ -269,7 +321,11 @@ impl Scenario {
         }
         let mut rng = ChaCha8Rng::seed_from_u64(self.trial_seed(trial) ^ 0x5354_4152_5421);
         let (x, y) = self.random_free_point(&mut rng).unwrap_or((st.x, st.y));
-        Pose2::new(x, y, rng.random_range(-std::f64::consts::PI..std::f64::consts::PI))
+        Pose2::new(
+            x,
+            y,
+            rng.random_range(-std::f64::consts::PI..std::f64::consts::PI),
+        )
     }
 
     /// Goal of trial `i` (seeded random when `goal.random`), if the scenario has one.
@@ -369,7 +425,11 @@ xbee_beacons = [{ x = 0.0, y = 3.5, address = "0013A20040000001", ni = "beacon1"
 
     #[test]
     fn random_start_is_seeded_and_clear() {
-        let s = Scenario::from_toml_str(&S.replace("random_start = false", "random_start = true"), Path::new("s.toml")).unwrap();
+        let s = Scenario::from_toml_str(
+            &S.replace("random_start = false", "random_start = true"),
+            Path::new("s.toml"),
+        )
+        .unwrap();
         let a = s.start_pose(0);
         assert_eq!(a, s.start_pose(0));
         assert_ne!(a, s.start_pose(1));
@@ -378,11 +438,30 @@ xbee_beacons = [{ x = 0.0, y = 3.5, address = "0013A20040000001", ni = "beacon1"
 
     #[test]
     fn validation_errors_name_key_and_line() {
-        let e = Scenario::from_toml_str(&S.replace("trials = 3", "trials = 0"), Path::new("s.toml")).unwrap_err();
-        assert!(matches!(e, SimError::Invalid { line: 6, ref key, .. } if key == "trials"), "{e}");
-        let e = Scenario::from_toml_str(&S.replace("[2.0, 7.0]]", "[2.0, 17.0]]"), Path::new("s.toml")).unwrap_err();
-        assert!(matches!(e, SimError::Invalid { line: 8, ref key, .. } if key == "waypoints"), "{e}");
-        let e = Scenario::from_toml_str(&S.replace("pipeline = \"ekf-slam\"", "pipeline = \"ekf\""), Path::new("s.toml")).unwrap_err();
-        assert!(matches!(e, SimError::Toml { line: 3, ref key, .. } if key == "pipeline"), "{e}");
+        let e =
+            Scenario::from_toml_str(&S.replace("trials = 3", "trials = 0"), Path::new("s.toml"))
+                .unwrap_err();
+        assert!(
+            matches!(e, SimError::Invalid { line: 6, ref key, .. } if key == "trials"),
+            "{e}"
+        );
+        let e = Scenario::from_toml_str(
+            &S.replace("[2.0, 7.0]]", "[2.0, 17.0]]"),
+            Path::new("s.toml"),
+        )
+        .unwrap_err();
+        assert!(
+            matches!(e, SimError::Invalid { line: 8, ref key, .. } if key == "waypoints"),
+            "{e}"
+        );
+        let e = Scenario::from_toml_str(
+            &S.replace("pipeline = \"ekf-slam\"", "pipeline = \"ekf\""),
+            Path::new("s.toml"),
+        )
+        .unwrap_err();
+        assert!(
+            matches!(e, SimError::Toml { line: 3, ref key, .. } if key == "pipeline"),
+            "{e}"
+        );
     }
 }

@@ -26,12 +26,19 @@ pub fn to_csv(poses: &[TimedPose]) -> String {
 
 /// Writes `truth.csv`.
 pub fn write(path: &Path, poses: &[TimedPose]) -> Result<(), SimError> {
-    std::fs::write(path, to_csv(poses)).map_err(|source| SimError::Io { path: path.to_path_buf(), source })
+    std::fs::write(path, to_csv(poses)).map_err(|source| SimError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
 /// Parses `truth.csv` text; errors name the line. Blank lines are skipped.
 pub fn parse(text: &str, path: &Path) -> Result<Vec<TimedPose>, SimError> {
-    let err = |line: usize, message: String| SimError::Csv { path: path.to_path_buf(), line, message };
+    let err = |line: usize, message: String| SimError::Csv {
+        path: path.to_path_buf(),
+        line,
+        message,
+    };
     let mut lines = text.lines().enumerate();
     match lines.next() {
         Some((_, h)) if h.trim() == HEADER => {}
@@ -45,10 +52,16 @@ pub fn parse(text: &str, path: &Path) -> Result<Vec<TimedPose>, SimError> {
         }
         let fields: Vec<&str> = l.split(',').map(str::trim).collect();
         let [t, x, y, th] = fields.as_slice() else {
-            return Err(err(i + 1, format!("expected 4 fields, found {}: `{l}`", fields.len())));
+            return Err(err(
+                i + 1,
+                format!("expected 4 fields, found {}: `{l}`", fields.len()),
+            ));
         };
         let num = |s: &str, name: &str| -> Result<f64, SimError> {
-            s.parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| err(i + 1, format!("`{name}` is not a finite number: `{s}`")))
+            s.parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| err(i + 1, format!("`{name}` is not a finite number: `{s}`")))
         };
         let t = num(t, "t")?;
         if let Some(last) = out.last().map(|p: &TimedPose| p.t) {
@@ -56,14 +69,24 @@ pub fn parse(text: &str, path: &Path) -> Result<Vec<TimedPose>, SimError> {
                 return Err(err(i + 1, format!("time goes backwards ({t} < {last})")));
             }
         }
-        out.push(TimedPose::new(t, Pose2 { x: num(x, "x")?, y: num(y, "y")?, theta: num(th, "theta")? }));
+        out.push(TimedPose::new(
+            t,
+            Pose2 {
+                x: num(x, "x")?,
+                y: num(y, "y")?,
+                theta: num(th, "theta")?,
+            },
+        ));
     }
     Ok(out)
 }
 
 /// Reads `truth.csv`.
 pub fn read(path: &Path) -> Result<Vec<TimedPose>, SimError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SimError::Io { path: path.to_path_buf(), source })?;
+    let text = std::fs::read_to_string(path).map_err(|source| SimError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
     parse(&text, path)
 }
 
@@ -73,7 +96,14 @@ mod tests {
 
     #[test]
     fn round_trip_is_exact() {
-        let poses: Vec<TimedPose> = (0..50).map(|i| TimedPose::new(f64::from(i) * 0.1, Pose2::new(f64::from(i).sin(), 1.0 / 3.0, f64::from(i) * 0.7))).collect();
+        let poses: Vec<TimedPose> = (0..50)
+            .map(|i| {
+                TimedPose::new(
+                    f64::from(i) * 0.1,
+                    Pose2::new(f64::from(i).sin(), 1.0 / 3.0, f64::from(i) * 0.7),
+                )
+            })
+            .collect();
         let text = to_csv(&poses);
         assert!(text.starts_with("t,x,y,theta\n"));
         assert_eq!(parse(&text, Path::new("t.csv")).unwrap(), poses);

@@ -102,7 +102,11 @@ impl UhfModel {
     pub fn mean_rss(&self, x: f64, y: f64) -> f64 {
         let d = x.hypot(y);
         let cos_theta = if d > 0.0 { (x / d).abs() } else { 1.0 };
-        let scaled = if x >= 0.0 { d } else { self.behind_attenuation * d };
+        let scaled = if x >= 0.0 {
+            d
+        } else {
+            self.behind_attenuation * d
+        };
         rss_on_axis(scaled) * cos_theta
     }
 
@@ -125,7 +129,12 @@ impl UhfModel {
     }
 
     /// One inventory: the tags read from `antenna` with their noisy RSS, in world order.
-    pub fn visible_tags<R: Rng + ?Sized>(&self, antenna: &Pose2, tags: &[UhfTag], rng: &mut R) -> Vec<UhfRead> {
+    pub fn visible_tags<R: Rng + ?Sized>(
+        &self,
+        antenna: &Pose2,
+        tags: &[UhfTag],
+        rng: &mut R,
+    ) -> Vec<UhfRead> {
         let mut out = Vec::new();
         for tag in tags {
             let mean = self.tag_mean_rss(antenna, tag);
@@ -137,7 +146,10 @@ impl UhfModel {
             if rss < self.threshold || bernoulli(rng, self.dropout) {
                 continue;
             }
-            out.push(UhfRead { epc: tag.epc.clone(), rss });
+            out.push(UhfRead {
+                epc: tag.epc.clone(),
+                rss,
+            });
         }
         out
     }
@@ -154,7 +166,10 @@ mod tests {
         let residuals: Vec<f64> = TABLE_3_1.iter().map(|(d, t)| rss_on_axis(*d) - t).collect();
         let total: f64 = residuals.iter().map(|r| r.abs()).sum();
         // Section 3.1.1: "accumulated error … 1907 RSS units" for the exponential fit.
-        assert!((total - STATED_ACCUMULATED_FIT_ERROR).abs() < 0.5, "total {total}");
+        assert!(
+            (total - STATED_ACCUMULATED_FIT_ERROR).abs() < 0.5,
+            "total {total}"
+        );
         let worst = residuals.iter().fold(0.0_f64, |m, r| m.max(r.abs()));
         assert!(worst < 570.0, "worst {worst}"); // at 0.8 m: 3367.8 vs 2800
         assert!((rss_on_axis(0.2) - 6680.7).abs() < 0.1);
@@ -179,7 +194,10 @@ mod tests {
     fn angle_and_behind_attenuation() {
         let m = UhfModel::default();
         let on = m.mean_rss(0.5, 0.0);
-        let off = m.mean_rss(0.5 * 60f64.to_radians().cos(), 0.5 * 60f64.to_radians().sin());
+        let off = m.mean_rss(
+            0.5 * 60f64.to_radians().cos(),
+            0.5 * 60f64.to_radians().sin(),
+        );
         assert!((off - 0.5 * on).abs() < 1e-6);
         // Behind: 5 cm behind equals 2.5 m in front scaled by a = 50.
         assert!((m.mean_rss(-0.05, 0.0) - rss_on_axis(2.5)).abs() < 1e-9);
@@ -188,9 +206,22 @@ mod tests {
 
     #[test]
     fn visible_tags_only_in_front_and_in_range() {
-        let m = UhfModel { dropout: 0.0, noise_sigma: 0.0, ..UhfModel::default() };
-        let tag = |epc: &str, x: f64, y: f64| UhfTag { epc: epc.into(), position: crate::geometry::Point::new(x, y), normal: 0.0 };
-        let tags = vec![tag("A1", 1.0, 0.0), tag("B2", -1.0, 0.0), tag("C3", 3.0, 0.0), tag("D4", 0.5, 0.5)];
+        let m = UhfModel {
+            dropout: 0.0,
+            noise_sigma: 0.0,
+            ..UhfModel::default()
+        };
+        let tag = |epc: &str, x: f64, y: f64| UhfTag {
+            epc: epc.into(),
+            position: crate::geometry::Point::new(x, y),
+            normal: 0.0,
+        };
+        let tags = vec![
+            tag("A1", 1.0, 0.0),
+            tag("B2", -1.0, 0.0),
+            tag("C3", 3.0, 0.0),
+            tag("D4", 0.5, 0.5),
+        ];
         let mut rng = ChaCha8Rng::seed_from_u64(1);
         let reads = m.visible_tags(&Pose2::new(0.0, 0.0, 0.0), &tags, &mut rng);
         let ids: Vec<&str> = reads.iter().map(|r| r.epc.as_str()).collect();
@@ -205,7 +236,11 @@ mod tests {
     fn noisy_reads_are_deterministic_per_seed() {
         let m = UhfModel::default();
         let tags: Vec<UhfTag> = (0..20)
-            .map(|i| UhfTag { epc: format!("{i:02X}"), position: crate::geometry::Point::new(0.2 + f64::from(i) * 0.08, 0.1), normal: 0.0 })
+            .map(|i| UhfTag {
+                epc: format!("{i:02X}"),
+                position: crate::geometry::Point::new(0.2 + f64::from(i) * 0.08, 0.1),
+                normal: 0.0,
+            })
             .collect();
         let run = |seed| {
             let mut rng = ChaCha8Rng::seed_from_u64(seed);

@@ -208,7 +208,10 @@ fn invalid(path: &Path, text: &str, key: &str, message: impl Into<String>) -> Si
 
 fn parse_hex_u64(s: &str) -> Option<u64> {
     let s = s.trim();
-    let s = s.strip_prefix("0x").or_else(|| s.strip_prefix("0X")).unwrap_or(s);
+    let s = s
+        .strip_prefix("0x")
+        .or_else(|| s.strip_prefix("0X"))
+        .unwrap_or(s);
     if s.is_empty() || s.len() > 16 {
         return None;
     }
@@ -241,7 +244,12 @@ impl World {
         let all_finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
         let (min, max) = (spec.area.min, spec.area.max);
         if !all_finite(&[min[0], min[1], max[0], max[1]]) || max[0] <= min[0] || max[1] <= min[1] {
-            return Err(invalid(path, text, "area", "max must be finite and greater than min"));
+            return Err(invalid(
+                path,
+                text,
+                "area",
+                "max must be finite and greater than min",
+            ));
         }
         let mut world = World {
             name: spec.name.clone(),
@@ -256,11 +264,21 @@ impl World {
                 Point::new(max[0], max[1]),
                 Point::new(min[0], max[1]),
             ];
-            world.walls.extend(Polygon { vertices: c.to_vec() }.edges());
+            world.walls.extend(
+                Polygon {
+                    vertices: c.to_vec(),
+                }
+                .edges(),
+            );
         }
         for w in &spec.walls {
             if w.points.len() < 2 || !w.points.iter().all(|p| all_finite(p)) {
-                return Err(invalid(path, text, "walls", "a wall needs at least 2 finite points"));
+                return Err(invalid(
+                    path,
+                    text,
+                    "walls",
+                    "a wall needs at least 2 finite points",
+                ));
             }
             world
                 .walls
@@ -271,16 +289,28 @@ impl World {
         }
         for o in &spec.obstacles {
             if o.points.len() < 3 || !o.points.iter().all(|p| all_finite(p)) {
-                return Err(invalid(path, text, "obstacles", "an obstacle needs at least 3 finite points"));
+                return Err(invalid(
+                    path,
+                    text,
+                    "obstacles",
+                    "an obstacle needs at least 3 finite points",
+                ));
             }
-            let poly = Polygon { vertices: o.points.iter().map(|p| pt(*p)).collect() };
+            let poly = Polygon {
+                vertices: o.points.iter().map(|p| pt(*p)).collect(),
+            };
             world.walls.extend(poly.edges());
             world.obstacles.push(poly);
         }
         if let Some(u) = &spec.uhf_tags {
             for t in &u.tags {
                 if parse_hex_u128_ok(&t.epc).is_none() {
-                    return Err(invalid(path, text, "uhf_tags.tags.epc", format!("`{}` is not hex", t.epc)));
+                    return Err(invalid(
+                        path,
+                        text,
+                        "uhf_tags.tags.epc",
+                        format!("`{}` is not hex", t.epc),
+                    ));
                 }
                 world.uhf_tags.push(UhfTag {
                     epc: t.epc.to_uppercase(),
@@ -290,14 +320,29 @@ impl World {
             }
             if let Some(r) = &u.random {
                 if r.count > 1_000_000 {
-                    return Err(invalid(path, text, "uhf_tags.random.count", "at most 1000000 tags"));
+                    return Err(invalid(
+                        path,
+                        text,
+                        "uhf_tags.random.count",
+                        "at most 1000000 tags",
+                    ));
                 }
                 if r.epc_prefix.len() > 8 || parse_hex_u128_ok(&r.epc_prefix).is_none() {
-                    return Err(invalid(path, text, "uhf_tags.random.epc_prefix", "1 to 8 hex digits"));
+                    return Err(invalid(
+                        path,
+                        text,
+                        "uhf_tags.random.epc_prefix",
+                        "1 to 8 hex digits",
+                    ));
                 }
                 world.place_random_tags(r);
                 if world.uhf_tags.len() < r.count {
-                    return Err(invalid(path, text, "uhf_tags.random", "obstacles leave no room for the tags"));
+                    return Err(invalid(
+                        path,
+                        text,
+                        "uhf_tags.random",
+                        "obstacles leave no room for the tags",
+                    ));
                 }
             }
         }
@@ -306,12 +351,24 @@ impl World {
         }
         for b in &spec.xbee_beacons {
             let address = parse_hex_u64(&b.address).ok_or_else(|| {
-                invalid(path, text, "xbee_beacons.address", format!("`{}` is not a 64-bit hex address", b.address))
+                invalid(
+                    path,
+                    text,
+                    "xbee_beacons.address",
+                    format!("`{}` is not a 64-bit hex address", b.address),
+                )
             })?;
-            world.beacons.push(XbeeBeacon { address, ni: b.ni.clone(), position: Point::new(b.x, b.y) });
+            world.beacons.push(XbeeBeacon {
+                address,
+                ni: b.ni.clone(),
+                position: Point::new(b.x, b.y),
+            });
         }
         if let Some(e) = &spec.emitter {
-            world.emitter = Some(Emitter { position: Point::new(e.x, e.y), power_dbm: e.power_dbm });
+            world.emitter = Some(Emitter {
+                position: Point::new(e.x, e.y),
+                power_dbm: e.power_dbm,
+            });
         }
         Ok(world)
     }
@@ -331,7 +388,12 @@ impl World {
                 continue;
             }
             self.uhf_tags.push(UhfTag {
-                epc: format!("{}{:0width$X}", r.epc_prefix.to_uppercase(), placed, width = width),
+                epc: format!(
+                    "{}{:0width$X}",
+                    r.epc_prefix.to_uppercase(),
+                    placed,
+                    width = width
+                ),
                 position: p,
                 normal,
             });
@@ -343,9 +405,18 @@ impl World {
         if !(g.pitch.is_finite() && g.pitch > 0.0) {
             return Err(invalid(path, text, "hf_grid.pitch", "must be positive"));
         }
-        let n = g.rows.checked_mul(g.cols).filter(|n| *n <= 1_000_000).ok_or_else(|| {
-            invalid(path, text, "hf_grid.rows", "rows * cols must be at most 1000000")
-        })?;
+        let n = g
+            .rows
+            .checked_mul(g.cols)
+            .filter(|n| *n <= 1_000_000)
+            .ok_or_else(|| {
+                invalid(
+                    path,
+                    text,
+                    "hf_grid.rows",
+                    "rows * cols must be at most 1000000",
+                )
+            })?;
         let base = parse_hex_u64(&g.uid_base)
             .ok_or_else(|| invalid(path, text, "hf_grid.uid_base", "not a 64-bit hex UID"))?;
         if !g.uids.is_empty() && g.uids.len() != n {
@@ -361,7 +432,12 @@ impl World {
                 let idx = r * g.cols + c;
                 let uid = match g.uids.get(idx) {
                     Some(s) => parse_hex_u64(s).ok_or_else(|| {
-                        invalid(path, text, "hf_grid.uids", format!("`{s}` is not a 64-bit hex UID"))
+                        invalid(
+                            path,
+                            text,
+                            "hf_grid.uids",
+                            format!("`{s}` is not a 64-bit hex UID"),
+                        )
                     })?,
                     None => base.wrapping_add(idx as u64),
                 };
@@ -389,7 +465,11 @@ impl World {
     /// True when a disk of `radius` at `centre` touches a wall or lies in an obstacle.
     #[must_use]
     pub fn disk_collides(&self, centre: &Point, radius: f64) -> bool {
-        self.inside_obstacle(centre) || self.walls.iter().any(|w| w.distance_to_point(centre) < radius)
+        self.inside_obstacle(centre)
+            || self
+                .walls
+                .iter()
+                .any(|w| w.distance_to_point(centre) < radius)
     }
 
     /// Number of wall segments crossed by the straight line from `a` to `b`.
@@ -405,7 +485,9 @@ impl World {
         self.walls
             .iter()
             .filter_map(|w| w.ray_hit(origin, angle))
-            .fold(None, |best: Option<f64>, d| Some(best.map_or(d, |b| b.min(d))))
+            .fold(None, |best: Option<f64>, d| {
+                Some(best.map_or(d, |b| b.min(d)))
+            })
     }
 }
 
@@ -461,7 +543,8 @@ ni = "beacon1"
         let a = World::from_toml_str(SMALL, Path::new("a")).unwrap();
         let b = World::from_toml_str(SMALL, Path::new("b")).unwrap();
         assert_eq!(a.uhf_tags, b.uhf_tags);
-        let c = World::from_toml_str(&SMALL.replace("seed = 7", "seed = 8"), Path::new("c")).unwrap();
+        let c =
+            World::from_toml_str(&SMALL.replace("seed = 7", "seed = 8"), Path::new("c")).unwrap();
         assert_ne!(a.uhf_tags, c.uhf_tags);
     }
 
@@ -504,6 +587,9 @@ ni = "beacon1"
         assert!(w.disk_collides(&Point::new(0.1, 2.5), 0.2));
         assert!(w.disk_collides(&Point::new(1.5, 1.5), 0.1));
         assert!(!w.disk_collides(&Point::new(3.5, 3.5), 0.2));
-        assert_eq!(w.walls_crossed(&Point::new(0.5, 1.5), &Point::new(3.0, 1.5)), 2);
+        assert_eq!(
+            w.walls_crossed(&Point::new(0.5, 1.5), &Point::new(3.0, 1.5)),
+            2
+        );
     }
 }

@@ -1,5 +1,6 @@
 //! Loads every scenario in the workspace's `scenarios/` directory and checks the key numbers
 //! against the seeds; runs short deterministic simulations built from them.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers outside #[test] fns
 
 use std::path::{Path, PathBuf};
 
@@ -26,8 +27,16 @@ fn every_scenario_file_loads_and_validates() {
         let p = entry.unwrap().path();
         if p.extension().is_some_and(|e| e == "toml") {
             let s = Scenario::load(&p).unwrap_or_else(|e| panic!("{e}"));
-            assert_eq!(Some(s.spec.name.as_str()), p.file_stem().and_then(|s| s.to_str()), "name must match the file name");
-            assert!(rfloc_sim::published::for_scenario(&s.spec.name).is_some(), "{} has no published numbers", s.spec.name);
+            assert_eq!(
+                Some(s.spec.name.as_str()),
+                p.file_stem().and_then(|s| s.to_str()),
+                "name must match the file name"
+            );
+            assert!(
+                rfloc_sim::published::for_scenario(&s.spec.name).is_some(),
+                "{} has no published numbers",
+                s.spec.name
+            );
             names.push(s.spec.name);
         }
     }
@@ -35,8 +44,16 @@ fn every_scenario_file_loads_and_validates() {
     assert_eq!(
         names,
         [
-            "seed000-sim", "seed001-a", "seed001-b", "seed001-c", "seed001-d", "seed001-e", "seed002-3x3", "seed002-large",
-            "seed003-case1", "seed003-case2"
+            "seed000-sim",
+            "seed001-a",
+            "seed001-b",
+            "seed001-c",
+            "seed001-d",
+            "seed001-e",
+            "seed002-3x3",
+            "seed002-large",
+            "seed003-case1",
+            "seed003-case2"
         ]
     );
     for entry in std::fs::read_dir(scenarios_dir().join("worlds")).unwrap() {
@@ -51,7 +68,10 @@ fn seed000_world_has_800_tags_in_5x5() {
     assert_eq!(s.spec.pipeline, Pipeline::Snapshot);
     assert_eq!(s.world.uhf_tags.len(), 800);
     assert_eq!((s.world.area_max.x, s.world.area_max.y), (5.0, 5.0));
-    assert_eq!((s.spec.trials, s.spec.params.exploration_steps), (20, Some(1000)));
+    assert_eq!(
+        (s.spec.trials, s.spec.params.exploration_steps),
+        (20, Some(1000))
+    );
     // Random starts/goals differ per trial and are reproducible.
     assert_ne!(s.start_pose(0), s.start_pose(1));
     assert_eq!(s.goal(3), load("seed000-sim.toml").goal(3));
@@ -66,7 +86,9 @@ fn seed001_geometry_matches_the_text() {
         let goal = s.goal(0).unwrap();
         assert_eq!(goal, e.position);
         assert_eq!(s.spec.goal.unwrap().tolerance_m, 0.5);
-        let straight = s.world.walls_crossed(&Point::new(start.x, start.y), &e.position);
+        let straight = s
+            .world
+            .walls_crossed(&Point::new(start.x, start.y), &e.position);
         match l {
             // A and C: straight line to the emitter is open; B and D: blocked.
             "a" | "c" => assert_eq!(straight, 0, "{l}"),
@@ -74,16 +96,32 @@ fn seed001_geometry_matches_the_text() {
             _ => unreachable!(),
         }
         if l != "e" {
-            assert!((start.distance(&Pose2::new(e.position.x, e.position.y, 0.0)) - if l < "c" { 4.0 } else { 32f64.sqrt() }).abs() < 1e-9);
+            assert!(
+                (start.distance(&Pose2::new(e.position.x, e.position.y, 0.0))
+                    - if l < "c" { 4.0 } else { 32f64.sqrt() })
+                .abs()
+                    < 1e-9
+            );
         }
     }
     // C: the L-shaped path via (4, 0) is blocked by the corner obstacle.
     let c = load("seed001-c.toml");
-    assert!(c.world.inside_obstacle(&Point::new(4.0, 0.0)) && c.world.inside_obstacle(&Point::new(0.0, 4.0)));
+    assert!(
+        c.world.inside_obstacle(&Point::new(4.0, 0.0))
+            && c.world.inside_obstacle(&Point::new(0.0, 4.0))
+    );
     // D: the L-shaped path via (4, 0) is open.
     let d = load("seed001-d.toml");
-    assert_eq!(d.world.walls_crossed(&Point::new(0.0, 0.0), &Point::new(4.0, 0.0)), 0);
-    assert_eq!(d.world.walls_crossed(&Point::new(4.0, 0.0), &Point::new(4.0, 4.0)), 0);
+    assert_eq!(
+        d.world
+            .walls_crossed(&Point::new(0.0, 0.0), &Point::new(4.0, 0.0)),
+        0
+    );
+    assert_eq!(
+        d.world
+            .walls_crossed(&Point::new(4.0, 0.0), &Point::new(4.0, 4.0)),
+        0
+    );
 }
 
 #[test]
@@ -92,16 +130,35 @@ fn seed002_and_seed003_parameters() {
     assert_eq!(s.world.hf_tags.len(), 9);
     let t = s.world.hf_tags.iter().find(|t| t.uid == 0xADC).unwrap();
     assert_eq!((t.position.x, t.position.y), (0.2, 0.1)); // Table 9: ADC at (200, 100) mm
-    let headings: Vec<f64> = (0..4).map(|i| s.start_pose(i).theta.to_degrees().round()).collect();
+    let headings: Vec<f64> = (0..4)
+        .map(|i| s.start_pose(i).theta.to_degrees().round())
+        .collect();
     assert_eq!(headings, [0.0, 90.0, 180.0, -90.0]);
     assert_eq!(load("seed002-large.toml").world.hf_tags.len(), 121);
 
     let c1 = load("seed003-case1.toml");
-    let b: Vec<(f64, f64)> = c1.world.beacons.iter().map(|b| (b.position.x, b.position.y)).collect();
+    let b: Vec<(f64, f64)> = c1
+        .world
+        .beacons
+        .iter()
+        .map(|b| (b.position.x, b.position.y))
+        .collect();
     assert_eq!(b, [(0.0, 3.5), (6.5, 2.5), (4.0, 7.25), (0.0, 8.0)]);
-    assert_eq!(c1.spec.waypoints, [[2.0, 2.0], [2.0, 7.0], [7.0, 7.0], [7.0, 2.0]]);
-    assert_eq!((c1.xbee_range_bearing().sigma_r, c1.xbee_range_bearing().sigma_beta_deg), (2.0, 18.0));
-    assert_eq!((c1.spec.robot.drive.sigma_v, c1.spec.robot.drive.sigma_omega), (0.0119, 0.0012));
+    assert_eq!(
+        c1.spec.waypoints,
+        [[2.0, 2.0], [2.0, 7.0], [7.0, 7.0], [7.0, 2.0]]
+    );
+    assert_eq!(
+        (
+            c1.xbee_range_bearing().sigma_r,
+            c1.xbee_range_bearing().sigma_beta_deg
+        ),
+        (2.0, 18.0)
+    );
+    assert_eq!(
+        (c1.spec.robot.drive.sigma_v, c1.spec.robot.drive.sigma_omega),
+        (0.0119, 0.0012)
+    );
     let c2 = load("seed003-case2.toml");
     assert_eq!(c2.spec.waypoints.len(), 6);
     assert_eq!(c2.world.beacons[2].ni, "beacon3");
@@ -119,14 +176,21 @@ fn run_case1(trial: usize) -> (Vec<TimedPose>, Vec<TimedPose>, Vec<(f64, f64)>) 
     for k in 0..s.steps() {
         let t = k as f64 * s.spec.dt_s;
         let p = robot.truth();
-        let Some(target) = s.spec.waypoints.get(wp) else { break };
+        let Some(target) = s.spec.waypoints.get(wp) else {
+            break;
+        };
         let (dx, dy) = (target[0] - p.x, target[1] - p.y);
         if dx.hypot(dy) < s.spec.params.waypoint_switch_m.unwrap() {
             wp += 1;
             continue;
         }
         let err = rfloc_pose::angle_diff(dy.atan2(dx), p.theta);
-        robot.step(if err.abs() < 0.5 { 0.5 } else { 0.05 }, (2.0 * err).clamp(-1.0, 1.0), s.spec.dt_s, &s.world);
+        robot.step(
+            if err.abs() < 0.5 { 0.5 } else { 0.05 },
+            (2.0 * err).clamp(-1.0, 1.0),
+            s.spec.dt_s,
+            &s.world,
+        );
         truth.push(TimedPose::new(t, robot.truth()));
         odo.push(TimedPose::new(t, robot.odometry()));
         if k % 10 == 0 {
@@ -147,15 +211,41 @@ fn same_seed_same_run_and_report() {
     // Visits all four waypoints within the 300 s.
     let s = load("seed003-case1.toml");
     for w in &s.spec.waypoints {
-        assert!(t1.iter().any(|p| p.pose.distance(&Pose2::new(w[0], w[1], 0.0)) < 0.35), "{w:?}");
+        assert!(
+            t1.iter()
+                .any(|p| p.pose.distance(&Pose2::new(w[0], w[1], 0.0)) < 0.35),
+            "{w:?}"
+        );
     }
     // Dead reckoning with Table 3.1 noise drifts, but stays within metres over 300 s.
     let e = trajectory_errors(&t1, &o1).unwrap();
     assert!(e.rmse > 0.0 && e.rmse < 3.0, "{e:?}");
-    let summary = Summary::from_trials(&[TrialResult { trial: 0, seed: 3001, errors: Some(e), time_to_goal: None, success: true, extra: vec![] }]);
+    let summary = Summary::from_trials(&[TrialResult {
+        trial: 0,
+        seed: 3001,
+        errors: Some(e),
+        time_to_goal: None,
+        success: true,
+        extra: vec![],
+    }]);
     let table = Report::new("seed003-case1", &summary).table();
     assert!(table.contains("| rmse_m |") && table.contains("0.6900"));
-    let plot = svg(&s.world, &PlotData { truth: &t1, estimate: &o1, waypoints: s.spec.waypoints.iter().map(|w| Point::new(w[0], w[1])).collect(), title: "case I".into(), ..PlotData::default() }, 50.0);
+    let plot = svg(
+        &s.world,
+        &PlotData {
+            truth: &t1,
+            estimate: &o1,
+            waypoints: s
+                .spec
+                .waypoints
+                .iter()
+                .map(|w| Point::new(w[0], w[1]))
+                .collect(),
+            title: "case I".into(),
+            ..PlotData::default()
+        },
+        50.0,
+    );
     assert_eq!(plot.matches("<polyline").count(), 2);
     assert_eq!(plot.matches("fill=\"#30a030\"").count(), 4);
 }
