@@ -46,7 +46,8 @@ fn default_child_frame() -> String {
 #[serde(deny_unknown_fields)]
 pub struct DeviceConfig {
     pub name: String,
-    /// Absent only in simulation configs, where the daemon attaches an emulator.
+    /// Absent only for GPIO devices (stepper) and in simulation configs, where the daemon
+    /// attaches an emulator.
     pub link: Option<LinkConfig>,
     /// Seconds without data before the device counts as stale and poses degrade.
     #[serde(default = "default_stale_after")]
@@ -168,6 +169,10 @@ pub enum EstimatorConfig {
     Odometry,
     /// HF floor grid: initial pose from a 360° turn, then tracking.
     Hfgrid(HfGridSettings),
+    /// XBee beacons: EKF-SLAM with range and bearing from the rotating antenna.
+    Ekfslam(EkfSlamSettings),
+    /// UHF tag snapshots: learned states, histogram filter, MDP navigation.
+    Snapshot(SnapshotSettings),
 }
 
 impl EstimatorConfig {
@@ -176,6 +181,8 @@ impl EstimatorConfig {
         match self {
             EstimatorConfig::Odometry => "odometry",
             EstimatorConfig::Hfgrid(_) => "hfgrid",
+            EstimatorConfig::Ekfslam(_) => "ekfslam",
+            EstimatorConfig::Snapshot(_) => "snapshot",
         }
     }
 
@@ -185,6 +192,8 @@ impl EstimatorConfig {
         match self {
             EstimatorConfig::Odometry => &["aria"],
             EstimatorConfig::Hfgrid(_) => &["kts"],
+            EstimatorConfig::Ekfslam(_) => &["aria", "xbee", "stepper"],
+            EstimatorConfig::Snapshot(_) => &["aria", "alien"],
         }
     }
 }
@@ -202,11 +211,74 @@ pub struct HfGridSettings {
     #[serde(default, rename = "tag")]
     pub tags: Vec<GridTag>,
 }
+impl Default for HfGridSettings {
+    fn default() -> Self {
+        Self { pitch_m: default_pitch(), antenna_offset_m: default_offset(), tags: Vec::new() }
+    }
+}
+
 fn default_pitch() -> f64 {
     0.10
 }
 fn default_offset() -> f64 {
     0.10
+}
+
+/// Parameters of the XBee EKF-SLAM pipeline (seed 003 Table 3.1 defaults).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EkfSlamSettings {
+    /// Received power at 1 m (dBm).
+    #[serde(default = "default_p_ref")]
+    pub p_ref_dbm: f64,
+    /// Path-loss exponent.
+    #[serde(default = "default_eta")]
+    pub path_loss_exponent: f64,
+    /// `range` (metres from the path-loss model) or `rssi` (dB, unbiased).
+    #[serde(default = "default_measurement")]
+    pub measurement: String,
+    /// Sweep step of the antenna (degrees; seed 003: 9).
+    #[serde(default = "default_step")]
+    pub sweep_step_deg: f64,
+    /// Waypoints to drive through, metres.
+    #[serde(default)]
+    pub waypoints: Vec<[f64; 2]>,
+}
+fn default_p_ref() -> f64 {
+    -29.0
+}
+fn default_eta() -> f64 {
+    2.0
+}
+fn default_measurement() -> String {
+    "range".into()
+}
+fn default_step() -> f64 {
+    9.0
+}
+
+/// Parameters of the UHF snapshot pipeline (seed 000).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SnapshotSettings {
+    /// Learned database (states, transition matrices), relative to `[state] dir`.
+    #[serde(default = "default_database")]
+    pub database: PathBuf,
+    /// `kmedoids` or `threshold`.
+    #[serde(default = "default_clustering")]
+    pub clustering: String,
+    /// Number of states for k-medoids.
+    #[serde(default = "default_states")]
+    pub states: usize,
+}
+fn default_database() -> PathBuf {
+    PathBuf::from("snapshot-db.json")
+}
+fn default_clustering() -> String {
+    "kmedoids".into()
+}
+fn default_states() -> usize {
+    60
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -348,6 +420,12 @@ impl std::error::Error for ConfigError {}
 impl RobotConfig {
     /// Reads, parses and checks a robot file.
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        Self::load_with(path, true)
+    }
+
+    /// Like [`RobotConfig::load`]; `check_devices = false` skips checks of device nodes and
+    /// credential files (for validating a robot's file on another machine).
+    pub fn load_with(path: &Path, check_devices: bool) -> Result<Self, ConfigError> {
         let file = path.display().to_string();
         let text = std::fs::read_to_string(path).map_err(|e| ConfigError {
             file: file.clone(),
@@ -357,23 +435,31 @@ impl RobotConfig {
             message: format!("cannot read: {e}"),
         })?;
         let cfg = Self::parse(&text, &file)?;
-        cfg.check(&text, &file, path.parent())?;
+        cfg.check(&text, &file, path.parent(), check_devices)?;
         Ok(cfg)
     }
 
     /// Parses TOML text; errors carry line, column and the key at the error.
     pub fn parse(text: &str, file: &str) -> Result<Self, ConfigError> {
         toml::from_str::<RobotConfig>(text).map_err(|e| {
+            let message = e.message().trim().to_string();
             let (line, column, key) = match e.span() {
-                Some(span) => locate(text, span.start),
+                Some(span) => {
+                    let first = locate(text, span.start);
+                    // Tagged tables report unknown fields at the table header: point at the field.
+                    match first.0.and_then(|l| unknown_field_offset(text, &message, l)) {
+                        Some(offset) => locate(text, offset),
+                        None => first,
+                    }
+                }
                 None => (None, None, None),
             };
-            ConfigError { file: file.to_string(), line, column, key, message: e.message().trim().to_string() }
+            ConfigError { file: file.to_string(), line, column, key, message }
         })
     }
 
     /// Semantic checks that TOML types cannot express.
-    pub fn check(&self, text: &str, file: &str, base: Option<&Path>) -> Result<(), ConfigError> {
+    pub fn check(&self, text: &str, file: &str, base: Option<&Path>, check_devices: bool) -> Result<(), ConfigError> {
         let err = |key: &str, message: String| {
             let (line, column) = find_key(text, key.rsplit('.').next().unwrap_or(key));
             ConfigError { file: file.to_string(), line, column, key: Some(key.to_string()), message }
@@ -387,14 +473,14 @@ impl RobotConfig {
                 return Err(err(&format!("device[{i}].stale_after_s"), "must be a positive number of seconds".into()));
             }
             match (&d.link, &self.simulation) {
-                (None, None) => {
+                (None, None) if !matches!(d.driver, DriverConfig::Stepper(_)) => {
                     return Err(err(
                         &format!("device[{i}].link"),
                         format!("device {:?} has no link (only simulation configs may omit it)", d.name),
                     ))
                 }
                 (Some(LinkConfig::Serial(s)), None) => {
-                    if !Path::new(&s.path).exists() {
+                    if check_devices && !Path::new(&s.path).exists() {
                         return Err(err(
                             &format!("device[{i}].link.path"),
                             format!("serial device {} does not exist", s.path),
@@ -410,7 +496,7 @@ impl RobotConfig {
             }
             if let DriverConfig::Alien(a) = &d.driver {
                 if let Some(p) = &a.password_file {
-                    if resolve_credential(p, base).is_none() {
+                    if check_devices && resolve_credential(p, base).is_none() {
                         return Err(err(
                             &format!("device[{i}].driver.password_file"),
                             format!("password file {} not found (looked in $CREDENTIALS_DIRECTORY and next to the config)", p.display()),
@@ -435,6 +521,19 @@ impl RobotConfig {
         if let Some(addr) = &self.pose.tcp {
             if addr.parse::<std::net::SocketAddr>().is_err() {
                 return Err(err("pose.tcp", format!("{addr:?} is not an ip:port address")));
+            }
+        }
+        if let EstimatorConfig::Ekfslam(e) = &self.estimator {
+            if !matches!(e.measurement.as_str(), "range" | "rssi") {
+                return Err(err("estimator.measurement", format!("{:?} is not range or rssi", e.measurement)));
+            }
+            if !(e.sweep_step_deg > 0.0 && e.sweep_step_deg <= 90.0) {
+                return Err(err("estimator.sweep_step_deg", "must be in (0, 90] degrees".into()));
+            }
+        }
+        if let EstimatorConfig::Snapshot(s) = &self.estimator {
+            if !matches!(s.clustering.as_str(), "kmedoids" | "threshold") {
+                return Err(err("estimator.clustering", format!("{:?} is not kmedoids or threshold", s.clustering)));
             }
         }
         if let Some(sim) = &self.simulation {
@@ -505,18 +604,58 @@ fn locate(text: &str, offset: usize) -> (Option<usize>, Option<usize>, Option<St
     (Some(line), Some(column), key)
 }
 
-/// Line and column of the first `key =` in the text.
+/// Line and column of a dotted key such as `device[1].link.path`: the search starts after the
+/// matching `[[device]]` header and tries the last segment first, then its parents (so a key
+/// inside an inline table is found on the inline table's line).
 fn find_key(text: &str, key: &str) -> (Option<usize>, Option<usize>) {
-    let bare = key.split('[').next().unwrap_or(key);
-    for (i, l) in text.lines().enumerate() {
-        if let Some((k, _)) = l.split_once('=') {
-            if k.trim() == bare {
-                let col = l.len() - l.trim_start().len() + 1;
-                return (Some(i + 1), Some(col));
+    let segments: Vec<&str> = key.split('.').collect();
+    let mut start_line = 0usize;
+    if let Some(first) = segments.first() {
+        if let Some(idx) = first.strip_prefix("device[").and_then(|r| r.strip_suffix(']')).and_then(|n| n.parse::<usize>().ok()) {
+            let mut seen = 0usize;
+            for (i, l) in text.lines().enumerate() {
+                if l.trim() == "[[device]]" {
+                    if seen == idx {
+                        start_line = i;
+                        break;
+                    }
+                    seen += 1;
+                }
+            }
+        }
+    }
+    for seg in segments.iter().rev() {
+        let bare = seg.split('[').next().unwrap_or(seg);
+        for (i, l) in text.lines().enumerate().skip(start_line) {
+            let t = l.trim_start();
+            let at_start = t.strip_prefix(bare).is_some_and(|r| r.trim_start().starts_with('='));
+            let inline = l.find(&format!(" {bare} =")).or_else(|| l.find(&format!("{{{bare} =")));
+            if at_start {
+                return (Some(i + 1), Some(l.len() - t.len() + 1));
+            }
+            if let Some(col) = inline {
+                return (Some(i + 1), Some(col + 2));
             }
         }
     }
     (None, None)
+}
+
+/// For `unknown field `x``, the line where `x =` appears at or after `from_line` (1-based).
+fn unknown_field_offset(text: &str, message: &str, from_line: usize) -> Option<usize> {
+    let rest = message.strip_prefix("unknown field `")?;
+    let name = rest.split('`').next()?;
+    let mut offset = 0usize;
+    for (i, l) in text.split_inclusive('\n').enumerate() {
+        if i + 1 >= from_line {
+            let t = l.trim_start();
+            if t.strip_prefix(name).is_some_and(|r| r.trim_start().starts_with('=')) {
+                return Some(offset + (l.len() - t.len()));
+            }
+        }
+        offset += l.len();
+    }
+    None
 }
 
 #[cfg(test)]
@@ -540,7 +679,7 @@ pipeline = "hfgrid"
     #[test]
     fn good_config_parses_and_checks() {
         let cfg = RobotConfig::parse(GOOD, "good.toml").unwrap();
-        cfg.check(GOOD, "good.toml", None).unwrap();
+        cfg.check(GOOD, "good.toml", None, true).unwrap();
         assert_eq!(cfg.devices.len(), 1);
         assert_eq!(cfg.pose.tcp.as_deref(), Some("127.0.0.1:2948"));
     }
@@ -571,7 +710,7 @@ pipeline = "hfgrid"
             "link = { kind = \"serial\", path = \"/dev/rfloc-does-not-exist\", baud = 115200 }",
         );
         let cfg = RobotConfig::parse(&text, "bad.toml").unwrap();
-        let e = cfg.check(&text, "bad.toml", None).unwrap_err();
+        let e = cfg.check(&text, "bad.toml", None, true).unwrap_err();
         assert_eq!(e.line, Some(7));
         assert!(e.to_string().contains("/dev/rfloc-does-not-exist"), "{e}");
     }
@@ -580,7 +719,7 @@ pipeline = "hfgrid"
     fn pipeline_without_its_device_is_rejected() {
         let text = GOOD.replace("pipeline = \"hfgrid\"", "pipeline = \"odometry\"");
         let cfg = RobotConfig::parse(&text, "bad.toml").unwrap();
-        let e = cfg.check(&text, "bad.toml", None).unwrap_err();
+        let e = cfg.check(&text, "bad.toml", None, true).unwrap_err();
         assert!(e.to_string().contains("needs a device with driver kind \"aria\""), "{e}");
     }
 }

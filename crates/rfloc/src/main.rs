@@ -42,6 +42,9 @@ enum Command {
     Validate {
         #[arg(short, long)]
         config: PathBuf,
+        /// Do not check that device nodes and credential files exist (validate for another machine).
+        #[arg(long)]
+        no_device_check: bool,
     },
     /// Run the pipeline on captured device logs and print poses as JSON lines.
     Replay {
@@ -92,7 +95,11 @@ fn init_logging(level: &str) {
 }
 
 fn load_config(path: &std::path::Path) -> Result<config::RobotConfig, ExitCode> {
-    config::RobotConfig::load(path).map_err(|e| {
+    load_config_with(path, true)
+}
+
+fn load_config_with(path: &std::path::Path, check_devices: bool) -> Result<config::RobotConfig, ExitCode> {
+    config::RobotConfig::load_with(path, check_devices).map_err(|e| {
         eprintln!("rfloc: configuration error: {e}");
         ExitCode::from(EX_CONFIG)
     })
@@ -105,8 +112,15 @@ fn runtime() -> std::io::Result<tokio::runtime::Runtime> {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
-        Command::Validate { config } => match load_config(&config) {
+        Command::Validate { config, no_device_check } => match load_config_with(&config, !no_device_check) {
             Ok(cfg) => {
+                if !pipeline::is_wired(&cfg.estimator) {
+                    eprintln!(
+                        "rfloc: warning: {}: pipeline {} is not wired into the daemon yet; it will run its devices but publish no poses",
+                        config.display(),
+                        cfg.estimator.name()
+                    );
+                }
                 println!(
                     "{}: ok (robot {:?}, {} device(s), pipeline {})",
                     config.display(),

@@ -24,6 +24,34 @@ pub fn build(config: &EstimatorConfig) -> Box<dyn Pipeline> {
     match config {
         EstimatorConfig::Odometry => Box::new(OdometryPipeline::default()),
         EstimatorConfig::Hfgrid(s) => Box::new(HfGridPipeline::new(s)),
+        EstimatorConfig::Ekfslam(_) | EstimatorConfig::Snapshot(_) => Box::new(Unavailable { name: config.name(), warned: false }),
+    }
+}
+
+/// Whether the daemon can run a pipeline end to end yet.
+#[must_use]
+pub fn is_wired(config: &EstimatorConfig) -> bool {
+    matches!(config, EstimatorConfig::Odometry | EstimatorConfig::Hfgrid(_))
+}
+
+/// A pipeline whose estimator exists as a library but is not wired into the daemon yet.
+#[derive(Debug)]
+struct Unavailable {
+    name: &'static str,
+    warned: bool,
+}
+
+impl Pipeline for Unavailable {
+    fn name(&self) -> &'static str {
+        self.name
+    }
+
+    fn handle(&mut self, _event: &DeviceEvent) -> Option<PoseEstimate> {
+        if !self.warned {
+            self.warned = true;
+            tracing::error!(pipeline = self.name, "pipeline not wired into the daemon yet: no poses will be published");
+        }
+        None
     }
 }
 

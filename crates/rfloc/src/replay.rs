@@ -1,11 +1,194 @@
 //! `rfloc replay`: the daemon's pipeline on captured device logs.
+//!
+//! Each `.cap` in the folder is replayed through its real driver over a `ReplayIo` (stream mode,
+//! as fast as possible) with the replay clock as the driver's clock, so every event carries its
+//! recorded time. Events of all devices and the capture's `ev mark` records are merged by time
+//! and fed to the pipeline; POSE lines go to stdout with times taken from the capture's
+//! `started` header plus the recorded offset, so the output is the same on every run.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
-use crate::config::RobotConfig;
+use anyhow::Context;
+use rfloc_aria::{AriaClient, ClientConfig};
+use rfloc_capture::Capture;
+use rfloc_kts::{KtsClient, KtsConfig, TagEventKind};
+use rfloc_transport::replay::{ReplayMode, Replayer};
+use rfloc_transport::SharedClock;
+
+use crate::config::{EstimatorConfig, HfGridSettings, RobotConfig};
+use crate::events::DeviceEvent;
+use crate::message::{pose_json, PoseFormat};
+use crate::pipeline;
 
 /// Replays every capture in `dir` through the pipeline and prints POSE lines.
-pub async fn replay_dir(dir: PathBuf, pipeline: Option<String>, cfg: Option<RobotConfig>) -> anyhow::Result<()> {
-    let _ = (dir, pipeline, cfg);
-    anyhow::bail!("replay is not wired yet")
+pub async fn replay_dir(dir: PathBuf, pipeline_name: Option<String>, cfg: Option<RobotConfig>) -> anyhow::Result<()> {
+    let lines = replay_lines(&dir, pipeline_name.as_deref(), cfg.as_ref()).await?;
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    for l in lines {
+        if writeln!(out, "{l}").is_err() {
+            break;
+        }
+    }
+    Ok(())
+}
+
+/// The POSE lines a replay of `dir` produces.
+pub async fn replay_lines(dir: &Path, pipeline_name: Option<&str>, cfg: Option<&RobotConfig>) -> anyhow::Result<Vec<String>> {
+    let mut caps = Vec::new();
+    for entry in std::fs::read_dir(dir).with_context(|| format!("reading {}", dir.display()))? {
+        let path = entry?.path();
+        if path.extension().is_some_and(|e| e == "cap") {
+            let cap = Capture::from_path(&path)?;
+            caps.push((path, cap));
+        }
+    }
+    caps.sort_by(|a, b| a.0.cmp(&b.0));
+    anyhow::ensure!(!caps.is_empty(), "no .cap files in {}", dir.display());
+
+    let mut events = Vec::new();
+    let mut started = None;
+    let mut kinds = Vec::new();
+    for (path, cap) in &caps {
+        let name = path.file_stem().map_or_else(|| "device".to_string(), |s| s.to_string_lossy().to_string());
+        let device = cap.header.device.clone().unwrap_or_default();
+        if started.is_none() {
+            started = cap.header.started.as_deref().and_then(parse_rfc3339);
+        }
+        for (t, text) in cap.events() {
+            if let Some(mark) = text.strip_prefix("mark ") {
+                events.push(DeviceEvent::Mark { device: name.clone(), t, text: mark.to_string() });
+            }
+        }
+        match device.as_str() {
+            "kts-rfidm1356" => {
+                kinds.push("kts");
+                events.extend(replay_kts(&name, cap.clone()).await?);
+            }
+            "pioneer-aria" => {
+                kinds.push("aria");
+                events.extend(replay_aria(&name, cap.clone()).await?);
+            }
+            other => tracing::warn!(device = other, file = %path.display(), "no replay driver for this device; skipped"),
+        }
+    }
+    events.sort_by(|a, b| event_time(a).total_cmp(&event_time(b)));
+
+    let estimator = match (pipeline_name, cfg) {
+        (_, Some(c)) => c.estimator.clone(),
+        (Some("odometry"), None) => EstimatorConfig::Odometry,
+        (Some("hfgrid"), None) => EstimatorConfig::Hfgrid(HfGridSettings::default()),
+        (Some(other), None) => anyhow::bail!("unknown pipeline {other:?} (odometry, hfgrid)"),
+        (None, None) if kinds.contains(&"kts") => EstimatorConfig::Hfgrid(HfGridSettings::default()),
+        (None, None) => EstimatorConfig::Odometry,
+    };
+    let mut p = pipeline::build(&estimator);
+    let fmt = PoseFormat {
+        frame_id: cfg.map_or_else(|| "map".into(), |c| c.robot.frame_id.clone()),
+        child_frame_id: cfg.map_or_else(|| "base_link".into(), |c| c.robot.child_frame_id.clone()),
+        precision: cfg.map_or(4, |c| c.pose.precision),
+    };
+    let epoch = started.unwrap_or(UNIX_EPOCH);
+    let mut lines = Vec::new();
+    for ev in &events {
+        if let Some(est) = p.handle(ev) {
+            let wall = epoch + Duration::from_secs_f64(est.time.max(0.0));
+            match pose_json(&est, wall, &fmt) {
+                Ok(l) => lines.push(l),
+                Err(e) => tracing::warn!(error = %e, "estimate not printed"),
+            }
+        }
+    }
+    Ok(lines)
+}
+
+fn event_time(e: &DeviceEvent) -> f64 {
+    match e {
+        DeviceEvent::Odometry { t, .. } | DeviceEvent::HfTag { t, .. } | DeviceEvent::Mark { t, .. } => *t,
+        DeviceEvent::Status { .. } => 0.0,
+    }
+}
+
+async fn replay_kts(name: &str, cap: Capture) -> anyhow::Result<Vec<DeviceEvent>> {
+    let (io, mut handle) = Replayer::new(cap).mode(ReplayMode::Stream).start();
+    let clock: SharedClock = handle.clock();
+    let config = KtsConfig { silence_timeout: None, ..KtsConfig::default() };
+    let mut client = KtsClient::spawn(io, config, clock);
+    let mut rx = client.take_events().context("event stream already taken")?;
+    let mut out = Vec::new();
+    while let Some(ev) = rx.recv().await {
+        if let TagEventKind::Seen { rssi: Some(r) } = ev.kind {
+            let clamp = |v: i32| u8::try_from(v.clamp(0, 255)).unwrap_or(0);
+            out.push(DeviceEvent::HfTag {
+                device: name.to_string(),
+                t: ev.t,
+                uid: ev.uid.to_string(),
+                rssi: clamp(r.main),
+                rssi_second: clamp(r.aux.unwrap_or(r.main)),
+            });
+        }
+    }
+    let report = handle.finished().await;
+    tracing::debug!(?report, stats = ?client.stats(), "kts replay done");
+    Ok(out)
+}
+
+async fn replay_aria(name: &str, cap: Capture) -> anyhow::Result<Vec<DeviceEvent>> {
+    let (io, handle) = Replayer::new(cap).mode(ReplayMode::RequestResponse).start();
+    let clock: SharedClock = handle.clock();
+    let config = ClientConfig { clock: Some(Arc::clone(&clock)), reconnect_delay: Duration::from_secs(3600), ..ClientConfig::default() };
+    let client = AriaClient::from_stream(io, config).await?;
+    let mut odom = client.odometry();
+    let mut out = Vec::new();
+    let mut h = handle.clone();
+    loop {
+        tokio::select! {
+            changed = odom.changed() => {
+                if changed.is_err() { break; }
+                let o = odom.borrow_and_update().clone();
+                out.push(DeviceEvent::Odometry { device: name.to_string(), t: o.time, pose: o.pose, v: o.v, w: o.w });
+            }
+            _ = h.finished() => break,
+        }
+    }
+    Ok(out)
+}
+
+/// Parses `YYYY-MM-DDTHH:MM:SS[.fff]Z`.
+fn parse_rfc3339(s: &str) -> Option<SystemTime> {
+    let s = s.strip_suffix('Z')?;
+    let (date, time) = s.split_once('T')?;
+    let mut d = date.split('-').map(str::parse::<i64>);
+    let (y, m, day) = (d.next()?.ok()?, d.next()?.ok()?, d.next()?.ok()?);
+    let mut t = time.split(':');
+    let (hh, mm) = (t.next()?.parse::<i64>().ok()?, t.next()?.parse::<i64>().ok()?);
+    let ss: f64 = t.next()?.parse().ok()?;
+    let days = days_from_civil(y, m, day);
+    let secs = days * 86_400 + hh * 3600 + mm * 60;
+    let secs = u64::try_from(secs).ok()?;
+    Some(UNIX_EPOCH + Duration::from_secs(secs) + Duration::from_secs_f64(ss.max(0.0)))
+}
+
+fn days_from_civil(y: i64, m: i64, d: i64) -> i64 {
+    let y = if m <= 2 { y - 1 } else { y };
+    let era = y.div_euclid(400);
+    let yoe = y.rem_euclid(400);
+    let mp = (m + 9) % 12;
+    let doy = (153 * mp + 2) / 5 + d - 1;
+    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+    era * 146_097 + doe - 719_468
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rfc3339_round_trips_through_iso8601() {
+        let t = parse_rfc3339("2026-11-21T10:00:00Z").unwrap();
+        assert_eq!(crate::message::iso8601(t), "2026-11-21T10:00:00.000Z");
+        assert!(parse_rfc3339("yesterday").is_none());
+    }
 }

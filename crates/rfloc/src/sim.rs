@@ -67,7 +67,7 @@ pub async fn start(cfg: &mut RobotConfig, sim: &SimulationConfig, stop: Cancella
     let start = Pose2::new(sim.start[0], sim.start[1], sim.start[2].to_radians());
     let antenna_offset = match &cfg.estimator {
         EstimatorConfig::Hfgrid(h) => h.antenna_offset_m,
-        EstimatorConfig::Odometry => 0.0,
+        _ => 0.10,
     };
     // The base first: other emulators follow its true pose.
     for device in cfg.devices.iter_mut().filter(|d| matches!(d.driver, DriverConfig::Aria(_))) {
