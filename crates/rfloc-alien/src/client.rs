@@ -1,0 +1,521 @@
+//! The async client: login, commands, setup, TagList polls.
+
+use std::collections::VecDeque;
+use std::sync::Arc;
+use std::time::Duration;
+
+use rfloc_transport::SharedClock;
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
+use tokio::time::Instant;
+
+use crate::custom_format::CustomFormat;
+use crate::error::{AlienError, SessionEnd};
+use crate::framing::{Frame, Prompt, ReplyFramer};
+use crate::reader_time::format_reader_time;
+use crate::reply::{parse_reply, session_end, Reply};
+use crate::setup::{split_set, ReaderSetup};
+use crate::snapshot::{RssiMeaning, Snapshot, SnapshotReader};
+use crate::taglist::{MalformedTagLine, TagListFormat, TagRead};
+
+/// How commands are sent.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PromptMode {
+    /// `\x01` before each command: no prompt, no echo, the reply ends at NUL (reference §1.3).
+    #[default]
+    Suppressed,
+    /// Plain commands: the reader echoes the command and sends `Alien>` after the reply (the
+    /// seed's session). Echo and prompts are removed.
+    Interactive,
+}
+
+/// Line terminator of commands.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum LineEnding {
+    /// `\r\n`, as every library the reference cites.
+    #[default]
+    CrLf,
+    /// `\n`, what the seed's Matlab `fprintf` sends.
+    Lf,
+}
+
+/// Supplies the reader time text (`YYYY/MM/DD hh:mm:ss`) for `set Time`.
+pub type TimeSource = Arc<dyn Fn() -> String + Send + Sync>;
+
+/// Client settings.
+#[derive(Clone)]
+pub struct AlienConfig {
+    pub username: String,
+    pub password: String,
+    pub prompt_mode: PromptMode,
+    pub line_ending: LineEnding,
+    /// Longest wait for a reply (a `t` includes one read cycle).
+    pub reply_timeout: Duration,
+    /// Longest wait for the banner and each login step.
+    pub login_timeout: Duration,
+    /// Send a keepalive when idle this long (keep it well under `NetworkTimeout`).
+    pub keepalive_interval: Duration,
+    pub rssi_meaning: RssiMeaning,
+    /// Reader time for `set Time`; default: UTC now.
+    pub time_source: TimeSource,
+}
+
+impl std::fmt::Debug for AlienConfig {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("AlienConfig")
+            .field("username", &self.username)
+            .field("prompt_mode", &self.prompt_mode)
+            .field("line_ending", &self.line_ending)
+            .field("reply_timeout", &self.reply_timeout)
+            .field("keepalive_interval", &self.keepalive_interval)
+            .field("rssi_meaning", &self.rssi_meaning)
+            .finish_non_exhaustive()
+    }
+}
+
+fn utc_now_text() -> String {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    format_reader_time(secs)
+}
+
+impl Default for AlienConfig {
+    fn default() -> Self {
+        Self {
+            username: "alien".to_string(),
+            password: "password".to_string(),
+            prompt_mode: PromptMode::Suppressed,
+            line_ending: LineEnding::CrLf,
+            reply_timeout: Duration::from_secs(5),
+            login_timeout: Duration::from_secs(5),
+            keepalive_interval: Duration::from_secs(30),
+            rssi_meaning: RssiMeaning::Linear,
+            time_source: Arc::new(utc_now_text),
+        }
+    }
+}
+
+/// Client counters.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct AlienStats {
+    pub commands: u64,
+    /// `Error …` replies.
+    pub reader_errors: u64,
+    /// Tag lines that did not parse.
+    pub malformed_tag_lines: u64,
+    /// Prompts or frames read where no reply was expected.
+    pub stray_frames: u64,
+    pub keepalives: u64,
+    /// Bytes dropped by the framer (overlong frames).
+    pub dropped_bytes: u64,
+}
+
+/// An Alien reader session over `T` (a TCP stream in the daemon).
+#[derive(Debug)]
+pub struct AlienClient<T> {
+    io: T,
+    framer: ReplyFramer,
+    frames: VecDeque<Frame>,
+    config: AlienConfig,
+    format: TagListFormat,
+    /// Last `TagListCustomFormat` set, used when `TagListFormat = Custom` follows.
+    pending_custom: Option<CustomFormat>,
+    clock: SharedClock,
+    stats: AlienStats,
+    last_io: Instant,
+}
+
+impl<T> AlienClient<T>
+where
+    T: AsyncRead + AsyncWrite + Unpin + Send,
+{
+    /// Wraps a connected stream and logs in.
+    ///
+    /// # Errors
+    /// [`AlienError::LoginFailed`], [`AlienError::Session`] (busy, closed), timeouts, I/O.
+    pub async fn connect(
+        io: T,
+        config: AlienConfig,
+        clock: SharedClock,
+    ) -> Result<Self, AlienError> {
+        let mut c = Self {
+            io,
+            framer: ReplyFramer::new(),
+            frames: VecDeque::new(),
+            config,
+            format: TagListFormat::Text,
+            pending_custom: None,
+            clock,
+            stats: AlienStats::default(),
+            last_io: Instant::now(),
+        };
+        c.login().await?;
+        Ok(c)
+    }
+
+    /// Counters so far.
+    #[must_use]
+    pub fn stats(&self) -> AlienStats {
+        AlienStats {
+            dropped_bytes: self.framer.dropped_bytes(),
+            ..self.stats
+        }
+    }
+
+    /// The TagList format the client parses with (follows `TagListFormat`/`…CustomFormat` sets).
+    #[must_use]
+    pub fn format(&self) -> &TagListFormat {
+        &self.format
+    }
+
+    /// Sets the TagList format the client parses with, without telling the reader.
+    pub fn set_format(&mut self, format: TagListFormat) {
+        self.format = format;
+    }
+
+    async fn next_frame(&mut self, timeout: Duration, what: &str) -> Result<Frame, AlienError> {
+        let deadline = Instant::now() + timeout;
+        let mut buf = [0u8; 4096];
+        loop {
+            if let Some(f) = self.frames.pop_front() {
+                return Ok(f);
+            }
+            let n = tokio::time::timeout_at(deadline, self.io.read(&mut buf))
+                .await
+                .map_err(|_| AlienError::Timeout(what.to_string()))??;
+            if n == 0 {
+                return Err(AlienError::Session(SessionEnd::Closed));
+            }
+            self.last_io = Instant::now();
+            let frames = self.framer.push(buf.get(..n).unwrap_or_default());
+            self.frames.extend(frames);
+        }
+    }
+
+    async fn write_line(&mut self, text: &str, suppressed: bool) -> Result<(), AlienError> {
+        let mut bytes = Vec::with_capacity(text.len() + 3);
+        if suppressed {
+            bytes.push(0x01);
+        }
+        bytes.extend_from_slice(text.as_bytes());
+        bytes.extend_from_slice(match self.config.line_ending {
+            LineEnding::CrLf => b"\r\n",
+            LineEnding::Lf => b"\n",
+        });
+        self.io.write_all(&bytes).await?;
+        self.io.flush().await?;
+        self.last_io = Instant::now();
+        Ok(())
+    }
+
+    /// Banner, `Username>`, `Password>` (reference §1.2 and §6 steps 1–3).
+    async fn login(&mut self) -> Result<(), AlienError> {
+        let timeout = self.config.login_timeout;
+        let suppressed = self.config.prompt_mode == PromptMode::Suppressed;
+        loop {
+            match self.next_frame(timeout, "banner").await? {
+                Frame::Prompt {
+                    prompt: Prompt::Username,
+                    ..
+                } => break,
+                Frame::Prompt {
+                    prompt: Prompt::Command,
+                    ..
+                } => return Ok(()),
+                Frame::Prompt { before, .. } | Frame::Reply(before) => {
+                    if let Some(end) = session_end(&before) {
+                        return Err(AlienError::Session(end));
+                    }
+                }
+                Frame::Overlong(_) => {}
+            }
+        }
+        let user = self.config.username.clone();
+        self.write_line(&user, suppressed).await?;
+        match self.next_frame(timeout, "username").await? {
+            Frame::Prompt {
+                prompt: Prompt::Password,
+                ..
+            } => {}
+            Frame::Reply(r) if r.trim().is_empty() => {}
+            other => return Err(AlienError::LoginFailed(frame_text(&other))),
+        }
+        let pass = self.config.password.clone();
+        self.write_line(&pass, suppressed).await?;
+        match self.next_frame(timeout, "password").await? {
+            Frame::Prompt {
+                prompt: Prompt::Command,
+                ..
+            } => Ok(()),
+            Frame::Reply(r) if r.trim().is_empty() => {
+                // Some readers follow the empty reply with a prompt; it is skipped later.
+                Ok(())
+            }
+            other => Err(AlienError::LoginFailed(frame_text(&other))),
+        }
+    }
+
+    /// Sends one command and returns its reply body (echo removed, prompt consumed).
+    ///
+    /// # Errors
+    /// [`AlienError::Reader`] for `Error …` replies, [`AlienError::Session`] for
+    /// `Connection Timeout.`/`Goodbye!`/busy/closed, timeouts and I/O errors.
+    pub async fn command(&mut self, cmd: &str) -> Result<String, AlienError> {
+        let suppressed = self.config.prompt_mode == PromptMode::Suppressed;
+        self.stats.commands += 1;
+        self.write_line(cmd, suppressed).await?;
+        let timeout = self.config.reply_timeout;
+        let body = loop {
+            match self.next_frame(timeout, cmd).await? {
+                Frame::Reply(body) => break body,
+                Frame::Prompt {
+                    prompt: Prompt::Command,
+                    before,
+                } => {
+                    if let Some(end) = session_end(&before) {
+                        return Err(AlienError::Session(end));
+                    }
+                    self.stats.stray_frames += 1;
+                }
+                Frame::Prompt { before, .. } => {
+                    return Err(AlienError::Unexpected {
+                        command: cmd.to_string(),
+                        reply: before,
+                    })
+                }
+                Frame::Overlong(head) => {
+                    return Err(AlienError::Unexpected {
+                        command: cmd.to_string(),
+                        reply: String::from_utf8_lossy(&head).into_owned(),
+                    })
+                }
+            }
+        };
+        if let Some(end) = session_end(&body) {
+            return Err(AlienError::Session(end));
+        }
+        if !suppressed {
+            match self.next_frame(timeout, cmd).await? {
+                Frame::Prompt {
+                    prompt: Prompt::Command,
+                    ..
+                } => {}
+                Frame::Reply(text) | Frame::Prompt { before: text, .. } => {
+                    if let Some(end) = session_end(&text) {
+                        return Err(AlienError::Session(end));
+                    }
+                    self.stats.stray_frames += 1;
+                }
+                Frame::Overlong(_) => self.stats.stray_frames += 1,
+            }
+        }
+        let body = strip_echo(&body, cmd);
+        if let Reply::Error { code, text } = parse_reply(&body) {
+            self.stats.reader_errors += 1;
+            return Err(AlienError::Reader {
+                command: cmd.to_string(),
+                code,
+                text,
+            });
+        }
+        if let Some((k, v)) = split_set(cmd) {
+            self.track_format(k, v)?;
+        }
+        Ok(body)
+    }
+
+    fn track_format(&mut self, key: &str, value: &str) -> Result<(), AlienError> {
+        if key.eq_ignore_ascii_case("TagListCustomFormat") {
+            let f = CustomFormat::compile(value)?;
+            if matches!(self.format, TagListFormat::Custom(_)) {
+                self.format = TagListFormat::Custom(f.clone());
+            }
+            self.pending_custom = Some(f);
+        } else if key.eq_ignore_ascii_case("TagListFormat") {
+            self.format = match value.to_ascii_lowercase().as_str() {
+                "text" => TagListFormat::Text,
+                "terse" => TagListFormat::Terse,
+                "xml" => TagListFormat::Xml,
+                "custom" => match &self.pending_custom {
+                    Some(f) => TagListFormat::Custom(f.clone()),
+                    None => TagListFormat::Text,
+                },
+                _ => return Ok(()),
+            };
+        }
+        Ok(())
+    }
+
+    /// `get <attr>`: the value after `=`.
+    ///
+    /// # Errors
+    /// As [`AlienClient::command`]; [`AlienError::Unexpected`] without `=`.
+    pub async fn get(&mut self, attr: &str) -> Result<String, AlienError> {
+        let cmd = format!("get {attr}");
+        let body = self.command(&cmd).await?;
+        match parse_reply(&body) {
+            Reply::Value { value, .. } => Ok(value),
+            _ => Err(AlienError::Unexpected {
+                command: cmd,
+                reply: body,
+            }),
+        }
+    }
+
+    /// `set <attr> = <value>`: the value the reader echoes.
+    ///
+    /// # Errors
+    /// As [`AlienClient::get`].
+    pub async fn set(&mut self, attr: &str, value: &str) -> Result<String, AlienError> {
+        let cmd = format!("set {attr} = {value}");
+        let body = self.command(&cmd).await?;
+        match parse_reply(&body) {
+            Reply::Value { value, .. } => Ok(value),
+            _ => Err(AlienError::Unexpected {
+                command: cmd,
+                reply: body,
+            }),
+        }
+    }
+
+    /// Applies a setup (after login or reconnect).
+    ///
+    /// # Errors
+    /// The first failing command's error.
+    pub async fn apply_setup(&mut self, setup: &ReaderSetup) -> Result<(), AlienError> {
+        for c in &setup.commands {
+            let now = (self.config.time_source)();
+            let text = c.text(&now);
+            self.command(&text).await?;
+        }
+        Ok(())
+    }
+
+    /// `t`: the TagList parsed with the current format.
+    ///
+    /// # Errors
+    /// As [`AlienClient::command`].
+    pub async fn read_taglist(
+        &mut self,
+    ) -> Result<(Vec<TagRead>, Vec<MalformedTagLine>), AlienError> {
+        let body = self.command("t").await?;
+        let (tags, bad) = self.format.parse(&body);
+        self.stats.malformed_tag_lines += bad.len() as u64;
+        Ok((tags, bad))
+    }
+
+    /// An empty command (reference §1.3): keeps the session inside `NetworkTimeout`.
+    ///
+    /// # Errors
+    /// As [`AlienClient::command`].
+    pub async fn keepalive(&mut self) -> Result<(), AlienError> {
+        self.stats.keepalives += 1;
+        self.command("").await.map(drop)
+    }
+
+    /// Sends a keepalive if idle for `keepalive_interval`.
+    ///
+    /// # Errors
+    /// As [`AlienClient::keepalive`].
+    pub async fn keepalive_if_due(&mut self) -> Result<(), AlienError> {
+        if self.last_io.elapsed() >= self.config.keepalive_interval {
+            self.keepalive().await?;
+        }
+        Ok(())
+    }
+
+    /// `quit`; succeeds when the reader says `Goodbye!` or closes.
+    ///
+    /// # Errors
+    /// Other replies or I/O errors.
+    pub async fn quit(mut self) -> Result<(), AlienError> {
+        match self.command("quit").await {
+            Err(AlienError::Session(SessionEnd::Goodbye | SessionEnd::Closed)) => Ok(()),
+            Err(e) => Err(e),
+            Ok(body) => Err(AlienError::Unexpected {
+                command: "quit".into(),
+                reply: body,
+            }),
+        }
+    }
+
+    /// Waits up to `timeout` for unsolicited output (e.g. `Connection Timeout.`).
+    /// `Ok(None)`: nothing arrived. `Ok(Some(text))`: other text.
+    ///
+    /// # Errors
+    /// [`AlienError::Session`] when the reader ended the session.
+    pub async fn next_unsolicited(
+        &mut self,
+        timeout: Duration,
+    ) -> Result<Option<String>, AlienError> {
+        match self.next_frame(timeout, "unsolicited").await {
+            Ok(f) => {
+                let text = frame_text(&f);
+                if let Some(end) = session_end(&text) {
+                    return Err(AlienError::Session(end));
+                }
+                self.stats.stray_frames += 1;
+                Ok(Some(text))
+            }
+            Err(AlienError::Timeout(_)) => Ok(None),
+            Err(e) => Err(e),
+        }
+    }
+}
+
+impl<T> SnapshotReader for AlienClient<T>
+where
+    T: AsyncRead + AsyncWrite + Unpin + Send,
+{
+    async fn read_snapshot(&mut self) -> Result<Snapshot, AlienError> {
+        let (tags, malformed) = self.read_taglist().await?;
+        Ok(Snapshot {
+            t: self.clock.now(),
+            tags,
+            malformed,
+            rssi_meaning: self.config.rssi_meaning,
+        })
+    }
+}
+
+fn frame_text(f: &Frame) -> String {
+    match f {
+        Frame::Prompt { before, prompt } => format!("{}{prompt:?}>", before.trim()),
+        Frame::Reply(r) => r.trim().to_string(),
+        Frame::Overlong(h) => String::from_utf8_lossy(h).into_owned(),
+    }
+}
+
+/// Removes an echoed command line at the start of a body (interactive mode, or a reader that
+/// echoes anyway).
+fn strip_echo(body: &str, cmd: &str) -> String {
+    let trimmed = body.trim_start_matches(['\r', '\n']);
+    let (first, rest) = match trimmed.find(['\r', '\n']) {
+        Some(i) => trimmed.split_at(i),
+        None => (trimmed, ""),
+    };
+    if !cmd.trim().is_empty() && first.trim().eq_ignore_ascii_case(cmd.trim()) {
+        rest.trim_start_matches(['\r', '\n']).to_string()
+    } else {
+        body.to_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn echo_is_stripped_once() {
+        assert_eq!(strip_echo("t\r\n(No Tags)\r\n", "t"), "(No Tags)\r\n");
+        assert_eq!(
+            strip_echo("PersistTime = 0\r\nPersistTime = 0\r\n", "PersistTime = 0"),
+            "PersistTime = 0\r\n"
+        );
+        assert_eq!(
+            strip_echo("ReaderName = x\r\n", "get ReaderName"),
+            "ReaderName = x\r\n"
+        );
+        assert_eq!(strip_echo("", ""), "");
+    }
+}
