@@ -131,14 +131,19 @@ fn serve<STEP, DIR, EN, D>(
     let span = info_span!("stepper");
     let _g = span.enter();
     info!("stepper thread started");
+    // The angle is published before each reply, so a caller that got a reply sees the new
+    // angle in `angle()`. A failed reply send only means the caller stopped waiting.
     while let Some(cmd) = rx.blocking_recv() {
-        // A send error below only means the caller stopped waiting; the command has run.
         match cmd {
             Command::MoveTo { angle_rad, reply } => {
-                let _ = reply.send(driver.move_to(angle_rad));
+                let r = driver.move_to(angle_rad);
+                angle_tx.send_replace(driver.angle());
+                let _ = reply.send(r);
             }
             Command::Home { reply } => {
-                let _ = reply.send(driver.home());
+                let r = driver.home();
+                angle_tx.send_replace(driver.angle());
+                let _ = reply.send(r);
             }
             Command::Enable { reply } => {
                 let _ = reply.send(driver.enable());
@@ -147,17 +152,17 @@ fn serve<STEP, DIR, EN, D>(
                 let _ = reply.send(driver.disable());
             }
             Command::SetZeroHere { reply } => {
-                let _ = reply.send(Ok(driver.set_zero_here()));
+                let old = driver.set_zero_here();
+                angle_tx.send_replace(driver.angle());
+                let _ = reply.send(Ok(old));
             }
             Command::Shutdown { reply } => {
                 let r = driver.disable().map(|()| driver.position_steps());
-                angle_tx.send_replace(driver.angle());
                 let _ = reply.send(r);
                 info!("stepper thread stopped on request");
                 return;
             }
         }
-        angle_tx.send_replace(driver.angle());
     }
     if let Err(e) = driver.disable() {
         warn!(error = %e, "could not disable stepper driver on exit");
