@@ -349,6 +349,11 @@ mod tests {
         assert!(bumped);
         // Stops with the 0.2 m body at the x = 3 wall.
         assert!((r.truth().x - 2.8).abs() < 2e-3, "{:?}", r.truth());
+        // Pushing on into the wall is refused and keeps the bumper pressed.
+        let stuck = r.truth();
+        let out = r.step(0.5, 0.0, 0.1, &w);
+        assert!(out.bumped);
+        assert!(out.truth.distance(&stuck) < 1e-9);
         // Backing away is allowed.
         let out = r.step(-0.5, 0.0, 0.1, &w);
         assert!(!out.bumped && out.truth.x < 2.8);

@@ -18,6 +18,7 @@ pub mod published;
 pub mod report;
 pub mod scanner;
 pub mod scenario;
+pub mod sensors;
 pub mod truth;
 pub mod uhf;
 pub mod world;
@@ -29,4 +30,5 @@ pub use kinematics::{integrate_unicycle, DiffDriveParams, RobotSim, StepOutcome}
 pub use metrics::{ErrorStats, Summary, TimedPose, TrialResult};
 pub use report::Report;
 pub use scenario::{Pipeline, Scenario, ScenarioSpec};
+pub use sensors::SensorSuite;
 pub use world::{World, WorldSpec};
