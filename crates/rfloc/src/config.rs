@@ -213,7 +213,11 @@ pub struct HfGridSettings {
 }
 impl Default for HfGridSettings {
     fn default() -> Self {
-        Self { pitch_m: default_pitch(), antenna_offset_m: default_offset(), tags: Vec::new() }
+        Self {
+            pitch_m: default_pitch(),
+            antenna_offset_m: default_offset(),
+            tags: Vec::new(),
+        }
     }
 }
 
@@ -349,7 +353,10 @@ fn default_format() -> String {
 }
 impl Default for LogConfig {
     fn default() -> Self {
-        Self { level: default_level(), format: default_format() }
+        Self {
+            level: default_level(),
+            format: default_format(),
+        }
     }
 }
 
@@ -447,36 +454,66 @@ impl RobotConfig {
                 Some(span) => {
                     let first = locate(text, span.start);
                     // Tagged tables report unknown fields at the table header: point at the field.
-                    match first.0.and_then(|l| unknown_field_offset(text, &message, l)) {
+                    match first
+                        .0
+                        .and_then(|l| unknown_field_offset(text, &message, l))
+                    {
                         Some(offset) => locate(text, offset),
                         None => first,
                     }
                 }
                 None => (None, None, None),
             };
-            ConfigError { file: file.to_string(), line, column, key, message }
+            ConfigError {
+                file: file.to_string(),
+                line,
+                column,
+                key,
+                message,
+            }
         })
     }
 
     /// Semantic checks that TOML types cannot express.
-    pub fn check(&self, text: &str, file: &str, base: Option<&Path>, check_devices: bool) -> Result<(), ConfigError> {
+    pub fn check(
+        &self,
+        text: &str,
+        file: &str,
+        base: Option<&Path>,
+        check_devices: bool,
+    ) -> Result<(), ConfigError> {
         let err = |key: &str, message: String| {
             let (line, column) = find_key(text, key.rsplit('.').next().unwrap_or(key));
-            ConfigError { file: file.to_string(), line, column, key: Some(key.to_string()), message }
+            ConfigError {
+                file: file.to_string(),
+                line,
+                column,
+                key: Some(key.to_string()),
+                message,
+            }
         };
         let mut names = std::collections::HashSet::new();
         for (i, d) in self.devices.iter().enumerate() {
             if !names.insert(d.name.as_str()) {
-                return Err(err(&format!("device[{i}].name"), format!("duplicate device name {:?}", d.name)));
+                return Err(err(
+                    &format!("device[{i}].name"),
+                    format!("duplicate device name {:?}", d.name),
+                ));
             }
             if !(d.stale_after_s.is_finite() && d.stale_after_s > 0.0) {
-                return Err(err(&format!("device[{i}].stale_after_s"), "must be a positive number of seconds".into()));
+                return Err(err(
+                    &format!("device[{i}].stale_after_s"),
+                    "must be a positive number of seconds".into(),
+                ));
             }
             match (&d.link, &self.simulation) {
                 (None, None) if !matches!(d.driver, DriverConfig::Stepper(_)) => {
                     return Err(err(
                         &format!("device[{i}].link"),
-                        format!("device {:?} has no link (only simulation configs may omit it)", d.name),
+                        format!(
+                            "device {:?} has no link (only simulation configs may omit it)",
+                            d.name
+                        ),
                     ))
                 }
                 (Some(LinkConfig::Serial(s)), None) => {
@@ -489,7 +526,10 @@ impl RobotConfig {
                 }
                 (Some(LinkConfig::Tcp(t)), _) => {
                     if !t.address.contains(':') {
-                        return Err(err(&format!("device[{i}].link.address"), format!("{:?} is not host:port", t.address)));
+                        return Err(err(
+                            &format!("device[{i}].link.address"),
+                            format!("{:?} is not host:port", t.address),
+                        ));
                     }
                 }
                 _ => {}
@@ -506,7 +546,10 @@ impl RobotConfig {
             }
             if let DriverConfig::Xbee(x) = &d.driver {
                 if !matches!(x.api_mode, 1 | 2) {
-                    return Err(err(&format!("device[{i}].driver.api_mode"), "must be 1 or 2".into()));
+                    return Err(err(
+                        &format!("device[{i}].driver.api_mode"),
+                        "must be 1 or 2".into(),
+                    ));
                 }
             }
         }
@@ -514,26 +557,42 @@ impl RobotConfig {
             if !self.devices.iter().any(|d| d.driver.kind() == *need) {
                 return Err(err(
                     "estimator.pipeline",
-                    format!("pipeline {:?} needs a device with driver kind {:?}", self.estimator.name(), need),
+                    format!(
+                        "pipeline {:?} needs a device with driver kind {:?}",
+                        self.estimator.name(),
+                        need
+                    ),
                 ));
             }
         }
         if let Some(addr) = &self.pose.tcp {
             if addr.parse::<std::net::SocketAddr>().is_err() {
-                return Err(err("pose.tcp", format!("{addr:?} is not an ip:port address")));
+                return Err(err(
+                    "pose.tcp",
+                    format!("{addr:?} is not an ip:port address"),
+                ));
             }
         }
         if let EstimatorConfig::Ekfslam(e) = &self.estimator {
             if !matches!(e.measurement.as_str(), "range" | "rssi") {
-                return Err(err("estimator.measurement", format!("{:?} is not range or rssi", e.measurement)));
+                return Err(err(
+                    "estimator.measurement",
+                    format!("{:?} is not range or rssi", e.measurement),
+                ));
             }
             if !(e.sweep_step_deg > 0.0 && e.sweep_step_deg <= 90.0) {
-                return Err(err("estimator.sweep_step_deg", "must be in (0, 90] degrees".into()));
+                return Err(err(
+                    "estimator.sweep_step_deg",
+                    "must be in (0, 90] degrees".into(),
+                ));
             }
         }
         if let EstimatorConfig::Snapshot(s) = &self.estimator {
             if !matches!(s.clustering.as_str(), "kmedoids" | "threshold") {
-                return Err(err("estimator.clustering", format!("{:?} is not kmedoids or threshold", s.clustering)));
+                return Err(err(
+                    "estimator.clustering",
+                    format!("{:?} is not kmedoids or threshold", s.clustering),
+                ));
             }
         }
         if let Some(sim) = &self.simulation {
@@ -541,7 +600,10 @@ impl RobotConfig {
                 return Err(err("simulation.time_scale", "must be in (0, 1000]".into()));
             }
             if !matches!(sim.motion.as_str(), "turn" | "square" | "still") {
-                return Err(err("simulation.motion", format!("{:?} is not one of turn, square, still", sim.motion)));
+                return Err(err(
+                    "simulation.motion",
+                    format!("{:?} is not one of turn, square, still", sim.motion),
+                ));
             }
         }
         Ok(())
@@ -568,7 +630,10 @@ pub fn resolve_credential(path: &Path, base: Option<&Path>) -> Option<PathBuf> {
 fn locate(text: &str, offset: usize) -> (Option<usize>, Option<usize>, Option<String>) {
     let before = text.get(..offset.min(text.len())).unwrap_or(text);
     let line = before.matches('\n').count() + 1;
-    let column = before.rsplit('\n').next().map_or(1, |l| l.chars().count() + 1);
+    let column = before
+        .rsplit('\n')
+        .next()
+        .map_or(1, |l| l.chars().count() + 1);
     let mut table = String::new();
     let mut device_index: Option<usize> = None;
     let mut devices_seen = 0usize;
@@ -588,7 +653,10 @@ fn locate(text: &str, offset: usize) -> (Option<usize>, Option<usize>, Option<St
         }
     }
     let current_line = text.lines().nth(line - 1).unwrap_or("");
-    let key_here = current_line.split_once('=').map(|(k, _)| k.trim().to_string()).filter(|k| !k.starts_with('['));
+    let key_here = current_line
+        .split_once('=')
+        .map(|(k, _)| k.trim().to_string())
+        .filter(|k| !k.starts_with('['));
     let mut parts = Vec::new();
     if !table.is_empty() {
         let t = match (device_index, table.strip_prefix("device")) {
@@ -611,7 +679,11 @@ fn find_key(text: &str, key: &str) -> (Option<usize>, Option<usize>) {
     let segments: Vec<&str> = key.split('.').collect();
     let mut start_line = 0usize;
     if let Some(first) = segments.first() {
-        if let Some(idx) = first.strip_prefix("device[").and_then(|r| r.strip_suffix(']')).and_then(|n| n.parse::<usize>().ok()) {
+        if let Some(idx) = first
+            .strip_prefix("device[")
+            .and_then(|r| r.strip_suffix(']'))
+            .and_then(|n| n.parse::<usize>().ok())
+        {
             let mut seen = 0usize;
             for (i, l) in text.lines().enumerate() {
                 if l.trim() == "[[device]]" {
@@ -628,8 +700,12 @@ fn find_key(text: &str, key: &str) -> (Option<usize>, Option<usize>) {
         let bare = seg.split('[').next().unwrap_or(seg);
         for (i, l) in text.lines().enumerate().skip(start_line) {
             let t = l.trim_start();
-            let at_start = t.strip_prefix(bare).is_some_and(|r| r.trim_start().starts_with('='));
-            let inline = l.find(&format!(" {bare} =")).or_else(|| l.find(&format!("{{{bare} =")));
+            let at_start = t
+                .strip_prefix(bare)
+                .is_some_and(|r| r.trim_start().starts_with('='));
+            let inline = l
+                .find(&format!(" {bare} ="))
+                .or_else(|| l.find(&format!("{{{bare} =")));
             if at_start {
                 return (Some(i + 1), Some(l.len() - t.len() + 1));
             }
@@ -649,7 +725,9 @@ fn unknown_field_offset(text: &str, message: &str, from_line: usize) -> Option<u
     for (i, l) in text.split_inclusive('\n').enumerate() {
         if i + 1 >= from_line {
             let t = l.trim_start();
-            if t.strip_prefix(name).is_some_and(|r| r.trim_start().starts_with('=')) {
+            if t.strip_prefix(name)
+                .is_some_and(|r| r.trim_start().starts_with('='))
+            {
                 return Some(offset + (l.len() - t.len()));
             }
         }
@@ -720,6 +798,10 @@ pipeline = "hfgrid"
         let text = GOOD.replace("pipeline = \"hfgrid\"", "pipeline = \"odometry\"");
         let cfg = RobotConfig::parse(&text, "bad.toml").unwrap();
         let e = cfg.check(&text, "bad.toml", None, true).unwrap_err();
-        assert!(e.to_string().contains("needs a device with driver kind \"aria\""), "{e}");
+        assert!(
+            e.to_string()
+                .contains("needs a device with driver kind \"aria\""),
+            "{e}"
+        );
     }
 }

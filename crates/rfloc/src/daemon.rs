@@ -9,7 +9,9 @@ use std::time::{Duration, SystemTime};
 use anyhow::Context;
 use rfloc_capture::Header;
 use rfloc_pose::EstimateMode;
-use rfloc_transport::{open, CaptureSink, LinkConfig, MonotonicClock, Recorder, SharedClock, Transport};
+use rfloc_transport::{
+    open, CaptureSink, LinkConfig, MonotonicClock, Recorder, SharedClock, Transport,
+};
 use tokio::sync::mpsc;
 use tokio_util::sync::CancellationToken;
 use tracing::Instrument;
@@ -57,7 +59,11 @@ impl DeviceContext {
                 let device_kind = capture_device_name(&self.device.driver);
                 let mut header = Header::new(device_kind, link.describe());
                 header.started = Some(message::iso8601(SystemTime::now()).replace(".000Z", "Z"));
-                header.notes.push(format!("device {} recorded by rfloc {}", self.device.name, env!("CARGO_PKG_VERSION")));
+                header.notes.push(format!(
+                    "device {} recorded by rfloc {}",
+                    self.device.name,
+                    env!("CARGO_PKG_VERSION")
+                ));
                 let path = dir.join(format!("{}.cap", self.device.name));
                 let sink = CaptureSink::create(&path, &header, Arc::clone(&self.clock))?;
                 Ok(Box::new(Recorder::new(io, sink)))
@@ -107,23 +113,34 @@ pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
     let stop = CancellationToken::new();
     spawn_signal_handler(stop.clone());
     let clock: SharedClock = Arc::new(MonotonicClock::new());
-    let capture_dir = opts.capture_dir.clone().or_else(|| cfg.state.capture_dir.clone());
+    let capture_dir = opts
+        .capture_dir
+        .clone()
+        .or_else(|| cfg.state.capture_dir.clone());
     if let Some(dir) = &capture_dir {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating capture folder {}", dir.display()))?;
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("creating capture folder {}", dir.display()))?;
     }
 
     // Pose stream.
     let hub = PoseHub::new(cfg.pose.client_queue);
     let mut servers = Vec::new();
     if let Some(addr) = &cfg.pose.tcp {
-        let listener = tokio::net::TcpListener::bind(addr).await.with_context(|| format!("binding pose stream on {addr}"))?;
+        let listener = tokio::net::TcpListener::bind(addr)
+            .await
+            .with_context(|| format!("binding pose stream on {addr}"))?;
         tracing::info!(address = %listener.local_addr()?, "pose stream (tcp)");
         servers.push(tokio::spawn(hub.clone().serve_tcp(listener, stop.clone())));
     }
     if let Some(path) = &cfg.pose.unix {
-        let listener = bind_unix(path).with_context(|| format!("binding pose stream on {}", path.display()))?;
+        let listener = bind_unix(path)
+            .with_context(|| format!("binding pose stream on {}", path.display()))?;
         tracing::info!(path = %path.display(), "pose stream (unix)");
-        servers.push(tokio::spawn(hub.clone().serve_unix(listener, path.clone(), stop.clone())));
+        servers.push(tokio::spawn(hub.clone().serve_unix(
+            listener,
+            path.clone(),
+            stop.clone(),
+        )));
     }
 
     // Simulation: emulators on ptys/loopback; device links are rewritten to reach them.
@@ -147,7 +164,8 @@ pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
             capture_dir: capture_dir.clone(),
             time_scale,
         };
-        let span = tracing::info_span!("device", name = %device.name, driver = device.driver.kind());
+        let span =
+            tracing::info_span!("device", name = %device.name, driver = device.driver.kind());
         let (task, handle) = devices::spawn(ctx, span.clone());
         if handle.is_some() {
             motion = handle;
@@ -173,18 +191,22 @@ pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
     let stale_after: HashMap<String, Duration> = cfg
         .devices
         .iter()
-        .map(|d| (d.name.clone(), Duration::from_secs_f64(d.stale_after_s / time_scale.max(1e-6))))
+        .map(|d| {
+            (
+                d.name.clone(),
+                Duration::from_secs_f64(d.stale_after_s / time_scale.max(1e-6)),
+            )
+        })
         .collect();
     let mut last_seen: HashMap<String, tokio::time::Instant> = HashMap::new();
     let mut stale: HashMap<String, bool> = HashMap::new();
     let watchdog = notify::watchdog_period().unwrap_or(Duration::from_secs(1));
     let mut tick = tokio::time::interval(watchdog.min(Duration::from_millis(500)));
     let mut non_finite = 0u64;
-    let deadline = cfg
-        .simulation
-        .as_ref()
-        .and_then(|s| s.duration_s)
-        .map(|d| tokio::time::Instant::now() + Duration::from_secs_f64(d / time_scale.max(1e-6)));
+    let deadline =
+        cfg.simulation.as_ref().and_then(|s| s.duration_s).map(|d| {
+            tokio::time::Instant::now() + Duration::from_secs_f64(d / time_scale.max(1e-6))
+        });
 
     let estimator_span = tracing::info_span!("estimator", pipeline = cfg.estimator.name());
     async {
@@ -251,7 +273,10 @@ pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
     tracing::info!("stopping: halting the robot and closing devices");
     stop.cancel();
     for t in device_tasks {
-        if tokio::time::timeout(Duration::from_secs(5), t).await.is_err() {
+        if tokio::time::timeout(Duration::from_secs(5), t)
+            .await
+            .is_err()
+        {
             tracing::warn!("a device task did not stop within 5 s");
         }
     }

@@ -23,7 +23,10 @@ pub fn spawn(ctx: DeviceContext, span: tracing::Span) -> (JoinHandle<()>, Option
     match ctx.device.driver.clone() {
         DriverConfig::Aria(s) => {
             let (tx, rx) = mpsc::channel(16);
-            (tokio::spawn(aria_task(ctx, s, rx).instrument(span)), Some(tx))
+            (
+                tokio::spawn(aria_task(ctx, s, rx).instrument(span)),
+                Some(tx),
+            )
         }
         DriverConfig::Kts(s) => (tokio::spawn(kts_task(ctx, s).instrument(span)), None),
         other => {
@@ -31,8 +34,15 @@ pub fn spawn(ctx: DeviceContext, span: tracing::Span) -> (JoinHandle<()>, Option
             (
                 tokio::spawn(
                     async move {
-                        tracing::error!(driver = kind, "driver not wired into the daemon yet; device ignored");
-                        ctx.status(DeviceState::Closed, format!("driver {kind} not available in this build")).await;
+                        tracing::error!(
+                            driver = kind,
+                            "driver not wired into the daemon yet; device ignored"
+                        );
+                        ctx.status(
+                            DeviceState::Closed,
+                            format!("driver {kind} not available in this build"),
+                        )
+                        .await;
                     }
                     .instrument(span),
                 ),
@@ -50,14 +60,22 @@ async fn pause(ctx: &DeviceContext, d: Duration) -> bool {
     }
 }
 
-async fn aria_task(ctx: DeviceContext, settings: AriaSettings, mut motion: mpsc::Receiver<(f64, f64)>) {
+async fn aria_task(
+    ctx: DeviceContext,
+    settings: AriaSettings,
+    mut motion: mpsc::Receiver<(f64, f64)>,
+) {
     let mut attempt = 0u32;
     while !ctx.stop.is_cancelled() {
         ctx.status(DeviceState::Connecting, "handshake").await;
         let opener = ctx.clone();
         let connector = move || -> ConnectFuture<Transport> {
             let c = opener.clone();
-            Box::pin(async move { c.open_link().await.map_err(|e| io::Error::other(format!("{e:#}"))) })
+            Box::pin(async move {
+                c.open_link()
+                    .await
+                    .map_err(|e| io::Error::other(format!("{e:#}")))
+            })
         };
         let config = ClientConfig {
             pulse_period: Duration::from_secs_f64(settings.pulse_period_s.max(0.05)),
@@ -82,7 +100,11 @@ async fn aria_task(ctx: DeviceContext, settings: AriaSettings, mut motion: mpsc:
             }
         };
         attempt = 0;
-        ctx.status(DeviceState::Connected, format!("robot {}", client.identity().name)).await;
+        ctx.status(
+            DeviceState::Connected,
+            format!("robot {}", client.identity().name),
+        )
+        .await;
         let mut odom = client.odometry();
         let mut link = client.link_state();
         loop {
@@ -141,7 +163,8 @@ async fn kts_task(ctx: DeviceContext, settings: KtsSettings) {
         let io = match ctx.open_link().await {
             Ok(io) => io,
             Err(e) => {
-                ctx.status(DeviceState::Reconnecting, format!("{e:#}")).await;
+                ctx.status(DeviceState::Reconnecting, format!("{e:#}"))
+                    .await;
                 if !pause(&ctx, backoff(attempt)).await {
                     return;
                 }
@@ -151,7 +174,9 @@ async fn kts_task(ctx: DeviceContext, settings: KtsSettings) {
         };
         let config = KtsConfig {
             scan_command: settings.scan_command.clone(),
-            silence_timeout: Some(Duration::from_secs_f64(settings.resync_after_s.max(0.1) / ctx.time_scale.max(1e-6))),
+            silence_timeout: Some(Duration::from_secs_f64(
+                settings.resync_after_s.max(0.1) / ctx.time_scale.max(1e-6),
+            )),
             ..KtsConfig::default()
         };
         let mut client = KtsClient::spawn(io, config, ctx.clock.clone());
@@ -160,7 +185,8 @@ async fn kts_task(ctx: DeviceContext, settings: KtsSettings) {
         };
         if let Err(e) = client.start_scan().await {
             tracing::warn!(error = %e, "start scan failed");
-            ctx.status(DeviceState::Reconnecting, format!("start scan: {e}")).await;
+            ctx.status(DeviceState::Reconnecting, format!("start scan: {e}"))
+                .await;
             if !pause(&ctx, backoff(attempt)).await {
                 return;
             }

@@ -8,13 +8,34 @@ use crate::message::DeviceState;
 #[derive(Debug, Clone)]
 pub enum DeviceEvent {
     /// Wheel odometry from the Pioneer base (pose in the odometry frame).
-    Odometry { device: String, t: f64, pose: Pose2, v: f64, w: f64 },
+    Odometry {
+        device: String,
+        t: f64,
+        pose: Pose2,
+        v: f64,
+        w: f64,
+    },
     /// An HF floor tag in the antenna field (`SCAN:+UID`), with the reader's RSSI numbers.
-    HfTag { device: String, t: f64, uid: String, rssi: u8, rssi_second: u8 },
+    HfTag {
+        device: String,
+        t: f64,
+        uid: String,
+        rssi: u8,
+        rssi_second: u8,
+    },
     /// A marker from a capture or a motion script, e.g. `stop 3 heading_deg=135`.
-    Mark { device: String, t: f64, text: String },
+    Mark {
+        device: String,
+        t: f64,
+        text: String,
+    },
     /// A link changed state.
-    Status { device: String, driver: &'static str, state: DeviceState, detail: String },
+    Status {
+        device: String,
+        driver: &'static str,
+        state: DeviceState,
+        detail: String,
+    },
 }
 
 impl DeviceEvent {

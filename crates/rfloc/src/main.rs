@@ -18,11 +18,18 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+/// The default robot file: the simulated HF-grid AGV.
+const EMBEDDED_SIM: &str = include_str!("../../../config/sim.toml");
+
 /// Exit status for configuration errors (sysexits EX_CONFIG).
 const EX_CONFIG: u8 = 78;
 
 #[derive(Debug, Parser)]
-#[command(name = "rfloc", version, about = "Radio-based robot localisation daemon")]
+#[command(
+    name = "rfloc",
+    version,
+    about = "Radio-based robot localisation daemon"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -30,10 +37,10 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Run the daemon with a robot configuration.
+    /// Run the daemon with a robot configuration (default: the embedded simulation, config/sim.toml).
     Run {
         #[arg(short, long)]
-        config: PathBuf,
+        config: Option<PathBuf>,
         /// Print each pose as a JSON line on stdout as well.
         #[arg(long)]
         stdout: bool,
@@ -86,7 +93,10 @@ fn init_logging(level: &str) {
     let filter = EnvFilter::try_from_env("RFLOC_LOG").unwrap_or_else(|_| EnvFilter::new(level));
     // Under systemd the journal adds its own timestamps and does not want colours.
     let journald = std::env::var_os("JOURNAL_STREAM").is_some();
-    let builder = tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).with_ansi(false);
+    let builder = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_ansi(false);
     if journald {
         builder.without_time().init();
     } else {
@@ -98,7 +108,10 @@ fn load_config(path: &std::path::Path) -> Result<config::RobotConfig, ExitCode> 
     load_config_with(path, true)
 }
 
-fn load_config_with(path: &std::path::Path, check_devices: bool) -> Result<config::RobotConfig, ExitCode> {
+fn load_config_with(
+    path: &std::path::Path,
+    check_devices: bool,
+) -> Result<config::RobotConfig, ExitCode> {
     config::RobotConfig::load_with(path, check_devices).map_err(|e| {
         eprintln!("rfloc: configuration error: {e}");
         ExitCode::from(EX_CONFIG)
@@ -106,13 +119,19 @@ fn load_config_with(path: &std::path::Path, check_devices: bool) -> Result<confi
 }
 
 fn runtime() -> std::io::Result<tokio::runtime::Runtime> {
-    tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
-        Command::Validate { config, no_device_check } => match load_config_with(&config, !no_device_check) {
+        Command::Validate {
+            config,
+            no_device_check,
+        } => match load_config_with(&config, !no_device_check) {
             Ok(cfg) => {
                 if !pipeline::is_wired(&cfg.estimator) {
                     eprintln!(
@@ -133,12 +152,30 @@ fn main() -> ExitCode {
             Err(code) => code,
         },
         Command::Run { config, stdout } => {
-            let cfg = match load_config(&config) {
-                Ok(c) => c,
-                Err(code) => return code,
+            let (cfg, stdout) = match config {
+                Some(path) => match load_config(&path) {
+                    Ok(c) => (c, stdout),
+                    Err(code) => return code,
+                },
+                // The embedded default always prints its poses.
+                None => {
+                    match config::RobotConfig::parse(EMBEDDED_SIM, "config/sim.toml (embedded)") {
+                        Ok(c) => (c, true),
+                        Err(e) => {
+                            eprintln!("rfloc: embedded configuration error: {e}");
+                            return ExitCode::from(EX_CONFIG);
+                        }
+                    }
+                }
             };
             init_logging(&cfg.log.level);
-            run_async(daemon::run(cfg, daemon::RunOptions { stdout, capture_dir: None }))
+            run_async(daemon::run(
+                cfg,
+                daemon::RunOptions {
+                    stdout,
+                    capture_dir: None,
+                },
+            ))
         }
         Command::Record { config, out } => {
             let cfg = match load_config(&config) {
@@ -146,9 +183,19 @@ fn main() -> ExitCode {
                 Err(code) => return code,
             };
             init_logging(&cfg.log.level);
-            run_async(daemon::run(cfg, daemon::RunOptions { stdout: false, capture_dir: Some(out) }))
+            run_async(daemon::run(
+                cfg,
+                daemon::RunOptions {
+                    stdout: false,
+                    capture_dir: Some(out),
+                },
+            ))
         }
-        Command::Replay { dir, pipeline, config } => {
+        Command::Replay {
+            dir,
+            pipeline,
+            config,
+        } => {
             init_logging("warn");
             let cfg = match config.map(|c| load_config(&c)).transpose() {
                 Ok(c) => c,
@@ -156,7 +203,12 @@ fn main() -> ExitCode {
             };
             run_async(replay::replay_dir(dir, pipeline, cfg))
         }
-        Command::Watch { tcp, unix, raw, count } => {
+        Command::Watch {
+            tcp,
+            unix,
+            raw,
+            count,
+        } => {
             init_logging("warn");
             let endpoint = unix.map_or(watch::Endpoint::Tcp(tcp), watch::Endpoint::Unix);
             run_async(watch::watch(endpoint, raw, count))

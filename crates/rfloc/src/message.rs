@@ -94,7 +94,11 @@ fn civil_from_days(z: i64) -> (i64, u32, u32) {
 }
 
 /// One POSE object as a JSON line (without the newline).
-pub fn pose_json(est: &PoseEstimate, wall: SystemTime, fmt: &PoseFormat) -> Result<String, NonFinite> {
+pub fn pose_json(
+    est: &PoseEstimate,
+    wall: SystemTime,
+    fmt: &PoseFormat,
+) -> Result<String, NonFinite> {
     let p = &est.pose;
     if !p.x.is_finite() || !p.y.is_finite() {
         return Err(NonFinite("position"));
@@ -117,10 +121,22 @@ pub fn pose_json(est: &PoseEstimate, wall: SystemTime, fmt: &PoseFormat) -> Resu
     let _ = write!(s, ",\"time\":{}", json_string(&iso8601(wall)));
     let _ = write!(s, ",\"stamp\":{:.6}", est.time);
     let _ = write!(s, ",\"frame_id\":{}", json_string(&fmt.frame_id));
-    let _ = write!(s, ",\"child_frame_id\":{}", json_string(&fmt.child_frame_id));
+    let _ = write!(
+        s,
+        ",\"child_frame_id\":{}",
+        json_string(&fmt.child_frame_id)
+    );
     let _ = write!(s, ",\"mode\":\"{}\"", mode_name(est.mode));
-    let _ = write!(s, ",\"x\":{:.pm$},\"y\":{:.pm$},\"yaw\":{:.pr$}", p.x, p.y, p.theta);
-    let _ = write!(s, ",\"quaternion\":[{:.pr$},{:.pr$},{:.pr$},{:.pr$}]", q[0], q[1], q[2], q[3]);
+    let _ = write!(
+        s,
+        ",\"x\":{:.pm$},\"y\":{:.pm$},\"yaw\":{:.pr$}",
+        p.x, p.y, p.theta
+    );
+    let _ = write!(
+        s,
+        ",\"quaternion\":[{:.pr$},{:.pr$},{:.pr$},{:.pr$}]",
+        q[0], q[1], q[2], q[3]
+    );
     s.push_str(",\"cov\":[");
     for (i, v) in cov.iter().enumerate() {
         if i > 0 {
@@ -160,7 +176,13 @@ impl DeviceState {
 
 /// One DEVICE object as a JSON line.
 #[must_use]
-pub fn device_json(name: &str, driver: &str, state: DeviceState, detail: &str, wall: SystemTime) -> String {
+pub fn device_json(
+    name: &str,
+    driver: &str,
+    state: DeviceState,
+    detail: &str,
+    wall: SystemTime,
+) -> String {
     format!(
         "{{\"class\":\"DEVICE\",\"time\":{},\"name\":{},\"driver\":{},\"state\":\"{}\",\"detail\":{}}}",
         json_string(&iso8601(wall)),
@@ -189,7 +211,11 @@ mod tests {
     }
 
     fn fmt() -> PoseFormat {
-        PoseFormat { frame_id: "map".into(), child_frame_id: "base_link".into(), precision: 3 }
+        PoseFormat {
+            frame_id: "map".into(),
+            child_frame_id: "base_link".into(),
+            precision: 3,
+        }
     }
 
     #[test]
@@ -215,15 +241,27 @@ mod tests {
     fn non_finite_estimates_are_refused() {
         let mut e = est();
         e.pose.x = f64::NAN;
-        assert_eq!(pose_json(&e, SystemTime::now(), &fmt()), Err(NonFinite("position")));
+        assert_eq!(
+            pose_json(&e, SystemTime::now(), &fmt()),
+            Err(NonFinite("position"))
+        );
         let mut e = est();
         e.covariance[(2, 2)] = f64::INFINITY;
-        assert_eq!(pose_json(&e, SystemTime::now(), &fmt()), Err(NonFinite("covariance")));
+        assert_eq!(
+            pose_json(&e, SystemTime::now(), &fmt()),
+            Err(NonFinite("covariance"))
+        );
     }
 
     #[test]
     fn device_line_escapes_text() {
-        let line = device_json("hf \"1\"", "kts", DeviceState::Stale, "silent 3.0 s", UNIX_EPOCH);
+        let line = device_json(
+            "hf \"1\"",
+            "kts",
+            DeviceState::Stale,
+            "silent 3.0 s",
+            UNIX_EPOCH,
+        );
         let v: serde_json::Value = serde_json::from_str(&line).unwrap();
         assert_eq!(v["name"], "hf \"1\"");
         assert_eq!(v["state"], "stale");

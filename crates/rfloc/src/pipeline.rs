@@ -24,14 +24,20 @@ pub fn build(config: &EstimatorConfig) -> Box<dyn Pipeline> {
     match config {
         EstimatorConfig::Odometry => Box::new(OdometryPipeline::default()),
         EstimatorConfig::Hfgrid(s) => Box::new(HfGridPipeline::new(s)),
-        EstimatorConfig::Ekfslam(_) | EstimatorConfig::Snapshot(_) => Box::new(Unavailable { name: config.name(), warned: false }),
+        EstimatorConfig::Ekfslam(_) | EstimatorConfig::Snapshot(_) => Box::new(Unavailable {
+            name: config.name(),
+            warned: false,
+        }),
     }
 }
 
 /// Whether the daemon can run a pipeline end to end yet.
 #[must_use]
 pub fn is_wired(config: &EstimatorConfig) -> bool {
-    matches!(config, EstimatorConfig::Odometry | EstimatorConfig::Hfgrid(_))
+    matches!(
+        config,
+        EstimatorConfig::Odometry | EstimatorConfig::Hfgrid(_)
+    )
 }
 
 /// A pipeline whose estimator exists as a library but is not wired into the daemon yet.
@@ -49,7 +55,10 @@ impl Pipeline for Unavailable {
     fn handle(&mut self, _event: &DeviceEvent) -> Option<PoseEstimate> {
         if !self.warned {
             self.warned = true;
-            tracing::error!(pipeline = self.name, "pipeline not wired into the daemon yet: no poses will be published");
+            tracing::error!(
+                pipeline = self.name,
+                "pipeline not wired into the daemon yet: no poses will be published"
+            );
         }
         None
     }
@@ -83,7 +92,11 @@ impl Pipeline for OdometryPipeline {
         Some(PoseEstimate {
             time: *t,
             pose: *pose,
-            covariance: Matrix3::from_diagonal(&nalgebra::Vector3::new(sxy * sxy, sxy * sxy, sth * sth)),
+            covariance: Matrix3::from_diagonal(&nalgebra::Vector3::new(
+                sxy * sxy,
+                sxy * sxy,
+                sth * sth,
+            )),
             mode: EstimateMode::Degraded,
             source: "odometry".into(),
         })
@@ -97,11 +110,20 @@ mod tests {
     #[test]
     fn odometry_variance_grows_with_travel() {
         let mut p = OdometryPipeline::default();
-        let ev = |x: f64| DeviceEvent::Odometry { device: "base".into(), t: x, pose: Pose2::new(x, 0.0, 0.0), v: 0.0, w: 0.0 };
+        let ev = |x: f64| DeviceEvent::Odometry {
+            device: "base".into(),
+            t: x,
+            pose: Pose2::new(x, 0.0, 0.0),
+            v: 0.0,
+            w: 0.0,
+        };
         let a = p.handle(&ev(0.0)).unwrap();
         let b = p.handle(&ev(10.0)).unwrap();
         assert!(b.covariance[(0, 0)] > a.covariance[(0, 0)]);
-        assert!((b.covariance[(0, 0)] - 0.01).abs() < 1e-12, "σ = 0.1 m after 10 m");
+        assert!(
+            (b.covariance[(0, 0)] - 0.01).abs() < 1e-12,
+            "σ = 0.1 m after 10 m"
+        );
         assert_eq!(b.mode, EstimateMode::Degraded);
     }
 }

@@ -23,7 +23,11 @@ use crate::message::{pose_json, PoseFormat};
 use crate::pipeline;
 
 /// Replays every capture in `dir` through the pipeline and prints POSE lines.
-pub async fn replay_dir(dir: PathBuf, pipeline_name: Option<String>, cfg: Option<RobotConfig>) -> anyhow::Result<()> {
+pub async fn replay_dir(
+    dir: PathBuf,
+    pipeline_name: Option<String>,
+    cfg: Option<RobotConfig>,
+) -> anyhow::Result<()> {
     let lines = replay_lines(&dir, pipeline_name.as_deref(), cfg.as_ref()).await?;
     use std::io::Write;
     let mut out = std::io::stdout().lock();
@@ -36,7 +40,11 @@ pub async fn replay_dir(dir: PathBuf, pipeline_name: Option<String>, cfg: Option
 }
 
 /// The POSE lines a replay of `dir` produces.
-pub async fn replay_lines(dir: &Path, pipeline_name: Option<&str>, cfg: Option<&RobotConfig>) -> anyhow::Result<Vec<String>> {
+pub async fn replay_lines(
+    dir: &Path,
+    pipeline_name: Option<&str>,
+    cfg: Option<&RobotConfig>,
+) -> anyhow::Result<Vec<String>> {
     let mut caps = Vec::new();
     for entry in std::fs::read_dir(dir).with_context(|| format!("reading {}", dir.display()))? {
         let path = entry?.path();
@@ -52,14 +60,20 @@ pub async fn replay_lines(dir: &Path, pipeline_name: Option<&str>, cfg: Option<&
     let mut started = None;
     let mut kinds = Vec::new();
     for (path, cap) in &caps {
-        let name = path.file_stem().map_or_else(|| "device".to_string(), |s| s.to_string_lossy().to_string());
+        let name = path
+            .file_stem()
+            .map_or_else(|| "device".to_string(), |s| s.to_string_lossy().to_string());
         let device = cap.header.device.clone().unwrap_or_default();
         if started.is_none() {
             started = cap.header.started.as_deref().and_then(parse_rfc3339);
         }
         for (t, text) in cap.events() {
             if let Some(mark) = text.strip_prefix("mark ") {
-                events.push(DeviceEvent::Mark { device: name.clone(), t, text: mark.to_string() });
+                events.push(DeviceEvent::Mark {
+                    device: name.clone(),
+                    t,
+                    text: mark.to_string(),
+                });
             }
         }
         match device.as_str() {
@@ -71,7 +85,9 @@ pub async fn replay_lines(dir: &Path, pipeline_name: Option<&str>, cfg: Option<&
                 kinds.push("aria");
                 events.extend(replay_aria(&name, cap.clone()).await?);
             }
-            other => tracing::warn!(device = other, file = %path.display(), "no replay driver for this device; skipped"),
+            other => {
+                tracing::warn!(device = other, file = %path.display(), "no replay driver for this device; skipped")
+            }
         }
     }
     events.sort_by(|a, b| event_time(a).total_cmp(&event_time(b)));
@@ -81,7 +97,9 @@ pub async fn replay_lines(dir: &Path, pipeline_name: Option<&str>, cfg: Option<&
         (Some("odometry"), None) => EstimatorConfig::Odometry,
         (Some("hfgrid"), None) => EstimatorConfig::Hfgrid(HfGridSettings::default()),
         (Some(other), None) => anyhow::bail!("unknown pipeline {other:?} (odometry, hfgrid)"),
-        (None, None) if kinds.contains(&"kts") => EstimatorConfig::Hfgrid(HfGridSettings::default()),
+        (None, None) if kinds.contains(&"kts") => {
+            EstimatorConfig::Hfgrid(HfGridSettings::default())
+        }
         (None, None) => EstimatorConfig::Odometry,
     };
     let mut p = pipeline::build(&estimator);
@@ -106,7 +124,9 @@ pub async fn replay_lines(dir: &Path, pipeline_name: Option<&str>, cfg: Option<&
 
 fn event_time(e: &DeviceEvent) -> f64 {
     match e {
-        DeviceEvent::Odometry { t, .. } | DeviceEvent::HfTag { t, .. } | DeviceEvent::Mark { t, .. } => *t,
+        DeviceEvent::Odometry { t, .. }
+        | DeviceEvent::HfTag { t, .. }
+        | DeviceEvent::Mark { t, .. } => *t,
         DeviceEvent::Status { .. } => 0.0,
     }
 }
@@ -114,7 +134,10 @@ fn event_time(e: &DeviceEvent) -> f64 {
 async fn replay_kts(name: &str, cap: Capture) -> anyhow::Result<Vec<DeviceEvent>> {
     let (io, mut handle) = Replayer::new(cap).mode(ReplayMode::Stream).start();
     let clock: SharedClock = handle.clock();
-    let config = KtsConfig { silence_timeout: None, ..KtsConfig::default() };
+    let config = KtsConfig {
+        silence_timeout: None,
+        ..KtsConfig::default()
+    };
     let mut client = KtsClient::spawn(io, config, clock);
     let mut rx = client.take_events().context("event stream already taken")?;
     let mut out = Vec::new();
@@ -138,7 +161,11 @@ async fn replay_kts(name: &str, cap: Capture) -> anyhow::Result<Vec<DeviceEvent>
 async fn replay_aria(name: &str, cap: Capture) -> anyhow::Result<Vec<DeviceEvent>> {
     let (io, handle) = Replayer::new(cap).mode(ReplayMode::RequestResponse).start();
     let clock: SharedClock = handle.clock();
-    let config = ClientConfig { clock: Some(Arc::clone(&clock)), reconnect_delay: Duration::from_secs(3600), ..ClientConfig::default() };
+    let config = ClientConfig {
+        clock: Some(Arc::clone(&clock)),
+        reconnect_delay: Duration::from_secs(3600),
+        ..ClientConfig::default()
+    };
     let client = AriaClient::from_stream(io, config).await?;
     let mut odom = client.odometry();
     let mut out = Vec::new();
@@ -163,7 +190,10 @@ fn parse_rfc3339(s: &str) -> Option<SystemTime> {
     let mut d = date.split('-').map(str::parse::<i64>);
     let (y, m, day) = (d.next()?.ok()?, d.next()?.ok()?, d.next()?.ok()?);
     let mut t = time.split(':');
-    let (hh, mm) = (t.next()?.parse::<i64>().ok()?, t.next()?.parse::<i64>().ok()?);
+    let (hh, mm) = (
+        t.next()?.parse::<i64>().ok()?,
+        t.next()?.parse::<i64>().ok()?,
+    );
     let ss: f64 = t.next()?.parse().ok()?;
     let days = days_from_civil(y, m, day);
     let secs = days * 86_400 + hh * 3600 + mm * 60;

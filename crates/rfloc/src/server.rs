@@ -36,7 +36,11 @@ impl PoseHub {
     #[must_use]
     pub fn new(queue: usize) -> Self {
         let (lines, _) = broadcast::channel(queue.max(1));
-        Self { lines, latest: Arc::new(Mutex::new(Latest::default())), write_timeout: Duration::from_secs(2) }
+        Self {
+            lines,
+            latest: Arc::new(Mutex::new(Latest::default())),
+            write_timeout: Duration::from_secs(2),
+        }
     }
 
     /// How long one line may take to write before the client counts as stuck and is dropped.
@@ -92,7 +96,12 @@ impl PoseHub {
     }
 
     /// Serves one connected client until it leaves, lags, or `stop` is cancelled.
-    pub async fn serve_client<W: AsyncWrite + Unpin>(&self, mut out: W, peer: &str, stop: CancellationToken) {
+    pub async fn serve_client<W: AsyncWrite + Unpin>(
+        &self,
+        mut out: W,
+        peer: &str,
+        stop: CancellationToken,
+    ) {
         let mut rx = self.lines.subscribe();
         for line in self.greeting() {
             if !self.send(&mut out, &line, peer).await {
@@ -216,11 +225,26 @@ mod tests {
         let s = stop.clone();
         let task = tokio::spawn(async move { h.serve_client(server, "t", s).await });
         let mut lines = BufReader::new(client).lines();
-        assert!(lines.next_line().await.unwrap().unwrap().contains("VERSION"));
+        assert!(lines
+            .next_line()
+            .await
+            .unwrap()
+            .unwrap()
+            .contains("VERSION"));
         assert!(lines.next_line().await.unwrap().unwrap().contains("DEVICE"));
-        assert!(lines.next_line().await.unwrap().unwrap().contains("\"x\":1"));
+        assert!(lines
+            .next_line()
+            .await
+            .unwrap()
+            .unwrap()
+            .contains("\"x\":1"));
         hub.publish_pose("{\"class\":\"POSE\",\"x\":2}".into());
-        assert!(lines.next_line().await.unwrap().unwrap().contains("\"x\":2"));
+        assert!(lines
+            .next_line()
+            .await
+            .unwrap()
+            .unwrap()
+            .contains("\"x\":2"));
         stop.cancel();
         task.await.unwrap();
     }
@@ -237,10 +261,16 @@ mod tests {
             hub.publish_pose(format!("{{\"class\":\"POSE\",\"n\":{i}}}"));
             tokio::task::yield_now().await;
         }
-        tokio::time::timeout(Duration::from_secs(2), task).await.unwrap().unwrap();
+        tokio::time::timeout(Duration::from_secs(2), task)
+            .await
+            .unwrap()
+            .unwrap();
         assert_eq!(hub.dropped_clients(), 1);
         drop(client);
-        assert_eq!(hub.last_pose().as_deref(), Some("{\"class\":\"POSE\",\"n\":199}"));
+        assert_eq!(
+            hub.last_pose().as_deref(),
+            Some("{\"class\":\"POSE\",\"n\":199}")
+        );
     }
 
     #[tokio::test]
@@ -257,7 +287,10 @@ mod tests {
         for i in 0..50 {
             hub.publish_pose(format!("{{\"n\":{i}}}"));
         }
-        tokio::time::timeout(Duration::from_secs(2), task).await.unwrap().unwrap();
+        tokio::time::timeout(Duration::from_secs(2), task)
+            .await
+            .unwrap()
+            .unwrap();
         assert_eq!(hub.dropped_clients(), 1);
         drop(client);
     }

@@ -39,7 +39,12 @@ impl SimRuntime {
     /// Stops the emulators.
     pub async fn shutdown(self) {
         if let Some(t) = self.truth() {
-            tracing::info!(x = t.x, y = t.y, theta = t.theta, "simulated robot final true pose");
+            tracing::info!(
+                x = t.x,
+                y = t.y,
+                theta = t.theta,
+                "simulated robot final true pose"
+            );
         }
         for t in self.tasks {
             t.abort();
@@ -62,15 +67,28 @@ fn pty_link(baud: u32) -> anyhow::Result<(SerialStream, SerialStream, LinkConfig
 }
 
 /// Starts an emulator for every device and points the device links at them.
-pub async fn start(cfg: &mut RobotConfig, sim: &SimulationConfig, stop: CancellationToken) -> anyhow::Result<SimRuntime> {
-    let mut runtime = SimRuntime { base: None, tasks: Vec::new(), _slaves: Vec::new(), config: sim.clone() };
+pub async fn start(
+    cfg: &mut RobotConfig,
+    sim: &SimulationConfig,
+    stop: CancellationToken,
+) -> anyhow::Result<SimRuntime> {
+    let mut runtime = SimRuntime {
+        base: None,
+        tasks: Vec::new(),
+        _slaves: Vec::new(),
+        config: sim.clone(),
+    };
     let start = Pose2::new(sim.start[0], sim.start[1], sim.start[2].to_radians());
     let antenna_offset = match &cfg.estimator {
         EstimatorConfig::Hfgrid(h) => h.antenna_offset_m,
         _ => 0.10,
     };
     // The base first: other emulators follow its true pose.
-    for device in cfg.devices.iter_mut().filter(|d| matches!(d.driver, DriverConfig::Aria(_))) {
+    for device in cfg
+        .devices
+        .iter_mut()
+        .filter(|d| matches!(d.driver, DriverConfig::Aria(_)))
+    {
         let (master, slave, link) = pty_link(9600)?;
         let mut emulator = RobotEmulator::new(RobotEmulatorConfig {
             time_scale: sim.time_scale,
@@ -90,7 +108,11 @@ pub async fn start(cfg: &mut RobotConfig, sim: &SimulationConfig, stop: Cancella
         device.link = Some(link);
         runtime._slaves.push(slave);
     }
-    for device in cfg.devices.iter_mut().filter(|d| matches!(d.driver, DriverConfig::Kts(_))) {
+    for device in cfg
+        .devices
+        .iter_mut()
+        .filter(|d| matches!(d.driver, DriverConfig::Kts(_)))
+    {
         let (master, slave, link) = pty_link(115_200)?;
         let base = runtime.base.clone();
         // Antenna behind the robot centre (seed 002: 10 cm), following the true pose.
@@ -116,7 +138,11 @@ pub async fn start(cfg: &mut RobotConfig, sim: &SimulationConfig, stop: Cancella
     }
     for device in &cfg.devices {
         if device.link.is_none() {
-            anyhow::bail!("simulation has no emulator for device {:?} (driver {})", device.name, device.driver.kind());
+            anyhow::bail!(
+                "simulation has no emulator for device {:?} (driver {})",
+                device.name,
+                device.driver.kind()
+            );
         }
     }
     Ok(runtime)
@@ -138,8 +164,12 @@ pub fn drive(sim: &SimRuntime, base: MotionSender, stop: CancellationToken) {
         tokio::select! { () = stop.cancelled() => return, () = tokio::time::sleep(wall(2.0)) => {} }
         let steps: Vec<(f64, f64, f64)> = match motion.as_str() {
             // Eight 45° turns with a pause at each stop, as seed 002's initialisation.
-            "turn" => (0..8).flat_map(|_| [(0.0, PI / 8.0, 2.0), (0.0, 0.0, 1.0)]).collect(),
-            "square" => (0..4).flat_map(|_| [(0.2, 0.0, 5.0), (0.0, PI / 8.0, 4.0)]).collect(),
+            "turn" => (0..8)
+                .flat_map(|_| [(0.0, PI / 8.0, 2.0), (0.0, 0.0, 1.0)])
+                .collect(),
+            "square" => (0..4)
+                .flat_map(|_| [(0.2, 0.0, 5.0), (0.0, PI / 8.0, 4.0)])
+                .collect(),
             _ => Vec::new(),
         };
         for (v, w, secs) in steps {

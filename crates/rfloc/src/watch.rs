@@ -16,7 +16,9 @@ pub enum Endpoint {
 pub async fn watch(endpoint: Endpoint, raw: bool, count: Option<usize>) -> anyhow::Result<()> {
     match endpoint {
         Endpoint::Tcp(addr) => {
-            let s = tokio::net::TcpStream::connect(&addr).await.with_context(|| format!("connecting to {addr}"))?;
+            let s = tokio::net::TcpStream::connect(&addr)
+                .await
+                .with_context(|| format!("connecting to {addr}"))?;
             print_stream(s, raw, count).await
         }
         Endpoint::Unix(path) => {
@@ -28,7 +30,11 @@ pub async fn watch(endpoint: Endpoint, raw: bool, count: Option<usize>) -> anyho
     }
 }
 
-async fn print_stream<R: AsyncRead + Unpin>(r: R, raw: bool, count: Option<usize>) -> anyhow::Result<()> {
+async fn print_stream<R: AsyncRead + Unpin>(
+    r: R,
+    raw: bool,
+    count: Option<usize>,
+) -> anyhow::Result<()> {
     let mut lines = BufReader::new(r).lines();
     let mut poses = 0usize;
     while let Some(line) = lines.next_line().await? {

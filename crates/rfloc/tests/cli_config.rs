@@ -13,8 +13,18 @@ fn workspace() -> PathBuf {
 }
 
 fn validate(path: &Path, extra: &[&str]) -> (i32, String) {
-    let out = rfloc().arg("validate").args(extra).arg("-c").arg(path).output().unwrap();
-    let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    let out = rfloc()
+        .arg("validate")
+        .args(extra)
+        .arg("-c")
+        .arg(path)
+        .output()
+        .unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
     (out.status.code().unwrap_or(-1), text)
 }
 
@@ -62,7 +72,11 @@ fn good_file_exits_zero() {
 #[test]
 fn unknown_key_exits_78_naming_file_line_and_key() {
     let dir = tempfile::tempdir().unwrap();
-    let p = write(&dir, "unknown.toml", &BASE.replace("kind = \"kts\"", "kind = \"kts\"\nbaudrate = 9600"));
+    let p = write(
+        &dir,
+        "unknown.toml",
+        &BASE.replace("kind = \"kts\"", "kind = \"kts\"\nbaudrate = 9600"),
+    );
     let (code, text) = validate(&p, &[]);
     assert_eq!(code, 78, "{text}");
     assert!(text.contains("unknown.toml:9:"), "{text}");
@@ -76,7 +90,10 @@ fn wrong_type_exits_78() {
     let p = write(&dir, "type.toml", &BASE.replace("name = \"t\"", "name = 3"));
     let (code, text) = validate(&p, &[]);
     assert_eq!(code, 78, "{text}");
-    assert!(text.contains("type.toml:2:") && text.contains("robot.name"), "{text}");
+    assert!(
+        text.contains("type.toml:2:") && text.contains("robot.name"),
+        "{text}"
+    );
 }
 
 #[test]
@@ -92,7 +109,10 @@ fn missing_device_path_exits_78() {
     );
     let (code, text) = validate(&p, &[]);
     assert_eq!(code, 78, "{text}");
-    assert!(text.contains("path.toml:6:") && text.contains("/dev/ttyRFLOC-missing"), "{text}");
+    assert!(
+        text.contains("path.toml:6:") && text.contains("/dev/ttyRFLOC-missing"),
+        "{text}"
+    );
     // The same file is fine when validated for another machine.
     let (code, _) = validate(&p, &["--no-device-check"]);
     assert_eq!(code, 0);

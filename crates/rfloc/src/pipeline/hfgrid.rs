@@ -15,7 +15,9 @@ pub struct HfGridPipeline {
 impl HfGridPipeline {
     #[must_use]
     pub fn new(settings: &HfGridSettings) -> Self {
-        Self { _settings: settings.clone() }
+        Self {
+            _settings: settings.clone(),
+        }
     }
 }
 
