@@ -86,6 +86,9 @@ pub enum ArgError {
     /// String longer than 255 bytes.
     #[error("string of {0} bytes does not fit a one-byte length")]
     StrTooLong(usize),
+    /// The argument makes the frame too long.
+    #[error(transparent)]
+    Frame(#[from] crate::frame::EncodeError),
 }
 
 impl Arg {
@@ -381,14 +384,9 @@ impl Command {
     /// The bytes on the wire for this command after clamping to `limits`.
     ///
     /// # Errors
-    /// Only [`Command::Other`] can fail (an argument or payload that does not fit).
+    /// Only [`Command::Other`] can fail (an argument or frame that does not fit).
     pub fn encode(&self, limits: &CommandLimits) -> Result<Vec<u8>, ArgError> {
-        let frame = self.to_frame(limits)?;
-        // A command payload is at most 2 + 255 bytes; anything longer was refused above only for
-        // strings over 255, so map the remaining case to the same error.
-        frame
-            .encode()
-            .map_err(|_| ArgError::StrTooLong(frame.payload.len()))
+        Ok(self.to_frame(limits)?.encode()?)
     }
 
     /// Interprets a received command frame (robot side). Integer arguments outside the `i16`
@@ -668,5 +666,13 @@ mod tests {
             Arg::Int(70000).encode(),
             Err(ArgError::IntOutOfRange(70000))
         );
+        let long = Command::Other {
+            number: 42,
+            arg: Arg::Str(vec![b'a'; 251]),
+        };
+        assert!(matches!(
+            long.encode(&CommandLimits::P3DX),
+            Err(ArgError::Frame(_))
+        ));
     }
 }

@@ -383,3 +383,29 @@ async fn wheel_slip_separates_odometry_from_truth() {
     assert!(vs_truth > vs_robot);
     client.shutdown().await.unwrap();
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn long_run_crosses_the_15_bit_wrap_on_a_p3dx() {
+    // `p3dx`: 0.485 mm per unit, so XPOS wraps every 32768 · 0.485 mm ≈ 15.9 m.
+    let scale = 50.0;
+    let mut config = EmulatorConfig {
+        time_scale: scale,
+        ..EmulatorConfig::default()
+    };
+    config.identity.subclass = "p3dx".into();
+    let (host, emu, _task) = spawn_emulator(config);
+    let client = AriaClient::from_stream(host, ClientConfig::default().scaled(scale))
+        .await
+        .unwrap();
+    assert!((client.factors().dist_conv - 0.485).abs() < 1e-12);
+    let mut rx = client.odometry();
+    client.set_velocity(2.0, 0.0).await.unwrap();
+    wait_odometry(&mut rx, "20 m", |o| o.pose.x > 20.0).await;
+    client.stop().await.unwrap();
+    let odo = wait_still(&mut rx).await;
+    let truth = emu.truth();
+    eprintln!("wrap: odometry x {:.4} truth x {:.4}", odo.pose.x, truth.x);
+    assert!(truth.x > 20.0);
+    assert!(odo.pose.distance(&truth) < 0.01);
+    client.shutdown().await.unwrap();
+}
