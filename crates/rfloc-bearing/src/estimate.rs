@@ -212,8 +212,20 @@ fn estimate_beacon(
         });
     }
     pts.sort_by(|a, b| a.dir.total_cmp(&b.dir));
-    let gaps: Vec<f64> = pts.windows(2).map(|w| w[1].dir - w[0].dir).collect();
-    let step = median(&gaps).max(1e-9);
+    // Nominal step: median of the non-zero gaps between sorted directions (repeated directions,
+    // e.g. from a robot turning during the sweep, do not count).
+    let gaps: Vec<f64> = pts
+        .windows(2)
+        .filter_map(|w| match w {
+            [a, b] if b.dir - a.dir > 1e-6 => Some(b.dir - a.dir),
+            _ => None,
+        })
+        .collect();
+    let step = if gaps.is_empty() {
+        TAU / n as f64
+    } else {
+        median(&gaps)
+    };
     let first = pts.first().map_or(0.0, |p| p.dir);
     let last = pts.last().map_or(0.0, |p| p.dir);
     // Full circle: the arc plus one step closes the turn.

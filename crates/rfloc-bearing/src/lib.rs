@@ -8,6 +8,7 @@
 //! - [`ScanRunner`]: drives an [`rfloc_stepper::AntennaRotator`] and an [`RssiProbe`].
 //! - [`ReflectorPattern`]: a gain pattern for simulators and tests.
 #![forbid(unsafe_code)]
+#![deny(clippy::indexing_slicing)]
 
 mod estimate;
 mod pathloss;

@@ -8,6 +8,7 @@
 //! - [`AntennaRotator`]: what a bearing scan needs; implemented by [`StepperHandle`] and by
 //!   [`SimulatedStepper`].
 #![forbid(unsafe_code)]
+#![deny(clippy::indexing_slicing)]
 
 mod config;
 mod driver;
