@@ -885,3 +885,96 @@ async fn close<T: AsyncRead + AsyncWrite + Unpin + Send>(
     tracing::info!("ARIA robot stopped and connection closed");
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sip::{MotorSip, SipTail, StallBumpers};
+    use rfloc_transport::MockTransport;
+
+    fn bytes(c: Command) -> Vec<u8> {
+        c.encode(&CommandLimits::P3DX).unwrap()
+    }
+
+    /// docs/protocols/pioneer-aria.md §8 Example G.
+    fn example_g() -> Vec<u8> {
+        MotorSip {
+            moving: true,
+            x_raw: 1000,
+            y_raw: 0x7E0C,
+            th_raw: 1024,
+            left_vel: 200,
+            right_vel: 200,
+            battery_dv: 125,
+            stall_bumpers: StallBumpers(0),
+            control: 0,
+            flags: 1,
+            compass: 0,
+            sonar: vec![],
+            grip_state: 0,
+            an_port: 0,
+            analog: 0,
+            digin: 0,
+            digout: 0,
+            tail: SipTail::default(),
+        }
+        .to_frame()
+        .encode()
+        .unwrap()
+    }
+
+    /// The exact byte sequence of a connection: a robot still open from an earlier client
+    /// (a SIP instead of the SYNC0 echo) is closed first; then SYNC0/1/2 (ref §3.1, §3.2), OPEN,
+    /// PULSE, ENABLE 1, SONAR 0; VEL/RVEL; STOP and CLOSE on shutdown.
+    #[tokio::test]
+    async fn connection_byte_sequence() {
+        // Example F: MobileSim's identity, subclass p3dx → DistConvFactor 0.485.
+        let identity = RobotIdentity {
+            name: "MobileSim".into(),
+            class: "Pioneer".into(),
+            subclass: "p3dx".into(),
+        };
+        let mock = MockTransport::builder()
+            .expect_write(bytes(Command::Sync0))
+            .reply(example_g())
+            .expect_write(bytes(Command::Close))
+            .expect_write(bytes(Command::Sync0))
+            .reply([0xFA, 0xFB, 0x03, 0x00, 0x00, 0x00])
+            .expect_write(bytes(Command::Sync1))
+            .reply([0xFA, 0xFB, 0x03, 0x01, 0x00, 0x01])
+            .expect_write(bytes(Command::Sync2))
+            .reply(identity.to_frame().encode().unwrap())
+            .expect_write(bytes(Command::Open))
+            .expect_write(bytes(Command::Pulse))
+            .expect_write(bytes(Command::Enable(true)))
+            .expect_write(bytes(Command::Sonar(false)))
+            // Garbage, then a SIP.
+            .reply([0x00, 0x13, 0x37])
+            .reply(example_g())
+            .expect_write([0xFA, 0xFB, 0x06, 0x0B, 0x3B, 0xC8, 0x00, 0xD3, 0x3B]) // VEL 200
+            .expect_write([0xFA, 0xFB, 0x06, 0x15, 0x1B, 0x1E, 0x00, 0x33, 0x1B]) // RVEL −30
+            .expect_write(bytes(Command::Stop))
+            .expect_write(bytes(Command::Close))
+            .build();
+        let probe = mock.clone();
+        let config = ClientConfig {
+            close_linger: Duration::ZERO,
+            ..ClientConfig::default()
+        };
+        let client = AriaClient::from_stream(mock, config).await.unwrap();
+        assert_eq!(client.identity(), &identity);
+        assert!((client.factors().dist_conv - 0.485).abs() < 1e-12);
+        let mut rx = client.odometry();
+        let odo = *rx.wait_for(|o| o.seq == 1).await.unwrap();
+        assert!((odo.pose.x - 0.485).abs() < 1e-12);
+        assert!((odo.pose.theta - 1024.0 * 0.001534).abs() < 1e-12);
+        assert!((odo.v - 0.2).abs() < 1e-12);
+        assert!((odo.battery_v - 12.5).abs() < 1e-12);
+        client.set_velocity(0.2, -30f64.to_radians()).await.unwrap();
+        let stats = client.stats();
+        assert_eq!(stats.dropped_bytes, 3);
+        client.shutdown().await.unwrap();
+        assert_eq!(probe.error(), None);
+        assert!(probe.is_done());
+    }
+}
