@@ -185,9 +185,9 @@ impl RobotSim {
         let (fraction, bumped) = if !blocked(1.0) {
             (1.0, false)
         } else if blocked(0.0) {
-            // Already in contact: only a move that increases the clearance is executed.
+            // Already in contact: only a move that does not reduce the clearance is executed.
             let probe = integrate_unicycle(&start, v_true, w_true, dt);
-            if clearance(&probe) > clearance(&start) {
+            if clearance(&probe) >= clearance(&start) {
                 (1.0, false)
             } else {
                 (0.0, true)
