@@ -66,7 +66,14 @@ impl std::fmt::Display for ReaderTime {
                 if let Some((y, m, d)) = date {
                     write!(f, "{y:04}/{m:02}/{d:02} ")?;
                 }
-                write!(f, "{seconds_of_day:.3}s")
+                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                let ms = (seconds_of_day.max(0.0) * 1000.0).round() as u64;
+                let (h, m, s, frac) = (ms / 3_600_000, ms / 60_000 % 60, ms / 1000 % 60, ms % 1000);
+                if frac == 0 {
+                    write!(f, "{h:02}:{m:02}:{s:02}")
+                } else {
+                    write!(f, "{h:02}:{m:02}:{s:02}.{frac:03}")
+                }
             }
             ReaderTime::EpochMillis(ms) => write!(f, "{ms}ms"),
         }
