@@ -536,6 +536,10 @@ ni = "beacon1"
         assert_eq!(w.hf_tags[4].uid, 0xE004_0200_0000_0004);
         assert!((w.hf_tags[5].position.x - 0.2).abs() < 1e-12);
         assert_eq!(w.beacons[0].address, 0x0013_A200_4000_0001);
+        // Integers are accepted where floats are expected.
+        let ints =
+            World::from_toml_str("[area]\nmin = [0, 0]\nmax = [5, 5]\n", Path::new("i")).unwrap();
+        assert_eq!(ints.area_max, Point::new(5.0, 5.0));
     }
 
     #[test]
