@@ -28,6 +28,9 @@ pub struct SensorSuite {
     rng_xbee: ChaCha8Rng,
     rng_emitter: ChaCha8Rng,
     rng_scanner: ChaCha8Rng,
+    /// Shadowing per beacon for the current sweep (drawn on first use after
+    /// [`SensorSuite::begin_xbee_sweep`]).
+    xbee_shadow: Vec<Option<f64>>,
 }
 
 fn stream(seed: u64, k: u64) -> ChaCha8Rng {
@@ -53,6 +56,7 @@ impl SensorSuite {
             rng_xbee: stream(seed, 3),
             rng_emitter: stream(seed, 4),
             rng_scanner: stream(seed, 5),
+            xbee_shadow: Vec::new(),
         }
     }
 
@@ -76,8 +80,16 @@ impl SensorSuite {
             .collect()
     }
 
+    /// Starts a new reflector sweep: the next reading of each beacon draws a fresh shadowing
+    /// value, which then holds until the next call (seed 003 sweeps at a standstill, so slow
+    /// fading is common to one sweep and must not move its arg-max).
+    pub fn begin_xbee_sweep(&mut self) {
+        self.xbee_shadow.clear();
+    }
+
     /// RSSI (dBm) of beacon `index` with the reflector at `stepper_angle` (radians from the
-    /// heading); `None` for an unknown beacon or below sensitivity.
+    /// heading); `None` for an unknown beacon or below sensitivity. Shadowing is held per
+    /// beacon between [`SensorSuite::begin_xbee_sweep`] calls; fast fading is drawn per call.
     pub fn xbee_rssi(
         &mut self,
         world: &World,
@@ -86,8 +98,26 @@ impl SensorSuite {
         index: usize,
     ) -> Option<f64> {
         let b = world.beacons.get(index)?;
-        self.xbee
-            .reading(robot, stepper_angle, &b.position, &mut self.rng_xbee)
+        if self.xbee_shadow.len() <= index {
+            self.xbee_shadow.resize(index + 1, None);
+        }
+        let shadow = match self.xbee_shadow.get(index).copied().flatten() {
+            Some(v) => v,
+            None => {
+                let v = self.xbee.draw_shadow(&mut self.rng_xbee);
+                if let Some(slot) = self.xbee_shadow.get_mut(index) {
+                    *slot = Some(v);
+                }
+                v
+            }
+        };
+        self.xbee.reading_with_shadow(
+            robot,
+            stepper_angle,
+            &b.position,
+            shadow,
+            &mut self.rng_xbee,
+        )
     }
 
     /// Table 3.1-style noisy `(range, bearing)` of beacon `index`.
@@ -166,6 +196,15 @@ emitter = { x = 3.0, y = 1.0 }
         assert_ne!(ua, c.uhf_inventory(&s.world, &pose));
         assert!(a.xbee_rssi(&s.world, &pose, 0.0, 0).is_some());
         assert!(a.xbee_rssi(&s.world, &pose, 0.0, 1).is_none());
+        // Within one sweep the shadowing is held: with fast fading off, repeated readings
+        // at one angle are equal; a new sweep draws a new value.
+        let mut q = SensorSuite::for_trial(&s, 0);
+        q.xbee.fast_sigma_db = 0.0;
+        q.xbee.integer_dbm = false;
+        let r1 = q.xbee_rssi(&s.world, &pose, 0.0, 0);
+        assert_eq!(r1, q.xbee_rssi(&s.world, &pose, 0.0, 0));
+        q.begin_xbee_sweep();
+        assert_ne!(r1, q.xbee_rssi(&s.world, &pose, 0.0, 0));
         assert!(a.emitter_rss(&s.world, &pose).iter().all(Option::is_some));
         assert_eq!(a.laser_scan(&s.world, &pose).len(), 683);
     }

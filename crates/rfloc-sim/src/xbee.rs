@@ -114,6 +114,25 @@ impl XbeeModel {
         self.finish(z)
     }
 
+    /// A shadowing draw (slow fading), to be held for one sweep.
+    pub fn draw_shadow<R: Rng + ?Sized>(&self, rng: &mut R) -> f64 {
+        gaussian(rng, self.shadow_sigma_db)
+    }
+
+    /// Reading of `beacon` with the reflector at `stepper_angle`, given the sweep's shadowing
+    /// value `shadow_db`; only fast fading is drawn now.
+    pub fn reading_with_shadow<R: Rng + ?Sized>(
+        &self,
+        robot: &Pose2,
+        stepper_angle: f64,
+        beacon: &Point,
+        shadow_db: f64,
+        rng: &mut R,
+    ) -> Option<f64> {
+        let (range, alpha) = range_and_off_boresight(robot, stepper_angle, beacon);
+        self.finish(self.mean_rssi(range, alpha) + shadow_db + gaussian(rng, self.fast_sigma_db))
+    }
+
     /// Reading of `beacon` with the reflector at `stepper_angle` (relative to the robot).
     pub fn reading<R: Rng + ?Sized>(
         &self,
