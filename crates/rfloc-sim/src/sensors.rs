@@ -6,7 +6,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rfloc_pose::Pose2;
 
-use crate::emitter::{AntennaRss, EmitterModel};
+use crate::emitter::{AntennaRss, EmitterModel, FadingField};
 use crate::hf::HfModel;
 use crate::scanner::{bumpers, Beam, BumperState, RangeScanner};
 use crate::scenario::Scenario;
@@ -31,6 +31,8 @@ pub struct SensorSuite {
     /// Shadowing per beacon for the current sweep (drawn on first use after
     /// [`SensorSuite::begin_xbee_sweep`]).
     xbee_shadow: Vec<Option<f64>>,
+    /// Spatial multipath per emitter antenna (zero fields when the model has it off).
+    emitter_fading: [FadingField; 4],
 }
 
 fn stream(seed: u64, k: u64) -> ChaCha8Rng {
@@ -44,12 +46,14 @@ impl SensorSuite {
     #[must_use]
     pub fn for_trial(scenario: &Scenario, trial: usize) -> Self {
         let seed = scenario.trial_seed(trial);
+        let emitter = scenario.emitter_model();
+        let emitter_fading = emitter.fading_fields(&mut stream(seed, 6));
         Self {
             uhf: scenario.uhf_model(),
             hf: scenario.hf_model(),
             xbee: scenario.xbee_model(),
             xbee_range_bearing: scenario.xbee_range_bearing(),
-            emitter: scenario.emitter_model(),
+            emitter,
             scanner: scenario.scanner(),
             rng_uhf: stream(seed, 1),
             rng_hf: stream(seed, 2),
@@ -57,6 +61,7 @@ impl SensorSuite {
             rng_emitter: stream(seed, 4),
             rng_scanner: stream(seed, 5),
             xbee_shadow: Vec::new(),
+            emitter_fading,
         }
     }
 
@@ -137,7 +142,13 @@ impl SensorSuite {
     /// RSS at the four emitter antennas; all `None` when the world has no emitter.
     pub fn emitter_rss(&mut self, world: &World, robot: &Pose2) -> AntennaRss {
         match &world.emitter {
-            Some(e) => self.emitter.sample(world, robot, e, &mut self.rng_emitter),
+            Some(e) => self.emitter.sample_with_fading(
+                world,
+                robot,
+                e,
+                &self.emitter_fading,
+                &mut self.rng_emitter,
+            ),
             None => [None; 4],
         }
     }
