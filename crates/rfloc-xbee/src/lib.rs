@@ -8,6 +8,35 @@
 //! - [`nd`]: `ND` records ⇄ [`Node`].
 //! - [`client`]: [`XBeeClient`] over `AsyncRead + AsyncWrite`.
 //! - [`emulator`]: [`CoordinatorEmulator`] serving beacons whose RSSI comes from a function.
+//!
+//! ```
+//! use std::sync::Arc;
+//! use rfloc_xbee::{
+//!     ApiMode, Beacon, ClientConfig, CoordinatorEmulator, EmulatorConfig, RssiFn, RssiProbe,
+//!     XBeeClient,
+//! };
+//!
+//! # #[tokio::main(flavor = "current_thread")]
+//! # async fn main() -> Result<(), rfloc_xbee::XBeeError> {
+//! // Two beacons; the second one is not heard.
+//! let rssi: RssiFn = Arc::new(|beacon_index| (beacon_index == 0).then_some(-61.0));
+//! let emulator = CoordinatorEmulator::new(
+//!     vec![Beacon::numbered(1), Beacon::numbered(2)],
+//!     rssi,
+//!     EmulatorConfig { mode: ApiMode::Escaped, ..EmulatorConfig::default() },
+//! );
+//! // Any byte stream works: a pty from tokio_serial::SerialStream::pair(), TCP, or in memory.
+//! let (host, device) = tokio::io::duplex(4096);
+//! tokio::spawn(async move { emulator.serve(device).await });
+//!
+//! let mut client = XBeeClient::new(host, ClientConfig::default()); // AP=2 by default
+//! let nodes = client.discover_nodes().await?;
+//! assert_eq!(nodes.len(), 1);
+//! assert_eq!(nodes[0].ni, "beacon1");
+//! assert_eq!(client.node_rssi(nodes[0].address).await?, Some(-61.0));
+//! # Ok(())
+//! # }
+//! ```
 #![forbid(unsafe_code)]
 #![deny(clippy::indexing_slicing)]
 
