@@ -1,0 +1,110 @@
+//! Pioneer base task: connect (handshake), forward odometry, apply motion commands, reconnect.
+
+use std::io;
+use std::time::Duration;
+
+use rfloc_aria::{client::ConnectFuture, AriaClient, ClientConfig};
+use rfloc_transport::Transport;
+use tokio::sync::mpsc;
+
+use crate::config::AriaSettings;
+use crate::daemon::{backoff, DeviceContext};
+use crate::devices::pause;
+use crate::events::DeviceEvent;
+use crate::message::DeviceState;
+
+pub(super) async fn run(
+    ctx: DeviceContext,
+    settings: AriaSettings,
+    mut motion: mpsc::Receiver<(f64, f64)>,
+) {
+    let mut attempt = 0u32;
+    while !ctx.stop.is_cancelled() {
+        ctx.status(DeviceState::Connecting, "handshake").await;
+        let opener = ctx.clone();
+        let connector = move || -> ConnectFuture<Transport> {
+            let c = opener.clone();
+            Box::pin(async move {
+                c.open_link()
+                    .await
+                    .map_err(|e| io::Error::other(format!("{e:#}")))
+            })
+        };
+        let config = ClientConfig {
+            pulse_period: Duration::from_secs_f64(settings.pulse_period_s.max(0.05)),
+            clock: Some(ctx.clock.clone()),
+            ..ClientConfig::default()
+        }
+        .scaled(ctx.time_scale);
+        let client = tokio::select! {
+            () = ctx.stop.cancelled() => return,
+            c = AriaClient::connect(connector, config) => c,
+        };
+        let client = match client {
+            Ok(c) => c,
+            Err(e) => {
+                ctx.status(DeviceState::Reconnecting, format!("{e}")).await;
+                tracing::warn!(error = %e, attempt, "pioneer connect failed");
+                if !pause(&ctx, backoff(attempt)).await {
+                    return;
+                }
+                attempt += 1;
+                continue;
+            }
+        };
+        attempt = 0;
+        ctx.status(
+            DeviceState::Connected,
+            format!("robot {}", client.identity().name),
+        )
+        .await;
+        let mut odom = client.odometry();
+        let mut link = client.link_state();
+        loop {
+            tokio::select! {
+                () = ctx.stop.cancelled() => {
+                    if let Err(e) = client.stop().await {
+                        tracing::warn!(error = %e, "STOP on shutdown failed");
+                    }
+                    if let Err(e) = client.shutdown().await {
+                        tracing::warn!(error = %e, "CLOSE on shutdown failed");
+                    }
+                    ctx.status(DeviceState::Closed, "stopped").await;
+                    return;
+                }
+                changed = odom.changed() => {
+                    if changed.is_err() {
+                        break;
+                    }
+                    let o = odom.borrow_and_update().clone();
+                    let ev = DeviceEvent::Odometry { device: ctx.device.name.clone(), t: o.time, pose: o.pose, v: o.v, w: o.w };
+                    if ctx.events.send(ev).await.is_err() {
+                        return;
+                    }
+                }
+                changed = link.changed() => {
+                    if changed.is_err() {
+                        break;
+                    }
+                    let state = link.borrow_and_update().clone();
+                    match state {
+                        rfloc_aria::LinkState::Connecting => ctx.status(DeviceState::Reconnecting, "link lost; reconnecting").await,
+                        rfloc_aria::LinkState::Connected(id) => ctx.status(DeviceState::Connected, format!("robot {}", id.name)).await,
+                        rfloc_aria::LinkState::Closed => break,
+                    }
+                }
+                cmd = motion.recv() => {
+                    let Some((v, w)) = cmd else { continue };
+                    if let Err(e) = client.set_velocity(v, w).await {
+                        tracing::warn!(error = %e, "velocity command failed");
+                    }
+                }
+            }
+        }
+        ctx.status(DeviceState::Reconnecting, "client closed").await;
+        if !pause(&ctx, backoff(attempt)).await {
+            return;
+        }
+        attempt += 1;
+    }
+}

@@ -1,0 +1,85 @@
+//! KTS HF reader task: open, start scanning, forward tag events, reconnect.
+
+use std::time::Duration;
+
+use rfloc_kts::{KtsClient, KtsConfig, TagEventKind};
+
+use crate::config::KtsSettings;
+use crate::daemon::{backoff, DeviceContext};
+use crate::devices::pause;
+use crate::events::DeviceEvent;
+use crate::message::DeviceState;
+
+pub(super) async fn run(ctx: DeviceContext, settings: KtsSettings) {
+    let mut attempt = 0u32;
+    while !ctx.stop.is_cancelled() {
+        ctx.status(DeviceState::Connecting, "opening").await;
+        let io = match ctx.open_link().await {
+            Ok(io) => io,
+            Err(e) => {
+                ctx.status(DeviceState::Reconnecting, format!("{e:#}"))
+                    .await;
+                if !pause(&ctx, backoff(attempt)).await {
+                    return;
+                }
+                attempt += 1;
+                continue;
+            }
+        };
+        let config = KtsConfig {
+            scan_command: settings.scan_command.clone(),
+            silence_timeout: Some(Duration::from_secs_f64(
+                settings.resync_after_s.max(0.1) / ctx.time_scale.max(1e-6),
+            )),
+            ..KtsConfig::default()
+        };
+        let mut client = KtsClient::spawn(io, config, ctx.clock.clone());
+        let Some(mut events) = client.take_events() else {
+            return;
+        };
+        if let Err(e) = client.start_scan().await {
+            tracing::warn!(error = %e, "start scan failed");
+            ctx.status(DeviceState::Reconnecting, format!("start scan: {e}"))
+                .await;
+            if !pause(&ctx, backoff(attempt)).await {
+                return;
+            }
+            attempt += 1;
+            continue;
+        }
+        attempt = 0;
+        ctx.status(DeviceState::Connected, "scanning").await;
+        loop {
+            tokio::select! {
+                () = ctx.stop.cancelled() => {
+                    let _ = tokio::time::timeout(Duration::from_millis(500), client.stop_scan()).await;
+                    ctx.status(DeviceState::Closed, "stopped").await;
+                    return;
+                }
+                ev = events.recv() => {
+                    let Some(ev) = ev else { break };
+                    if let TagEventKind::Seen { rssi: Some(r) } = ev.kind {
+                        let clamp = |v: i32| u8::try_from(v.clamp(0, 255)).unwrap_or(0);
+                        let out = DeviceEvent::HfTag {
+                            device: ctx.device.name.clone(),
+                            t: ev.t,
+                            uid: ev.uid.to_string(),
+                            rssi: clamp(r.main),
+                            rssi_second: clamp(r.aux.unwrap_or(r.main)),
+                        };
+                        if ctx.events.send(out).await.is_err() {
+                            return;
+                        }
+                    }
+                }
+            }
+        }
+        let stats = client.stats();
+        tracing::warn!(?stats, "HF reader link closed; reconnecting");
+        ctx.status(DeviceState::Reconnecting, "link closed").await;
+        if !pause(&ctx, backoff(attempt)).await {
+            return;
+        }
+        attempt += 1;
+    }
+}

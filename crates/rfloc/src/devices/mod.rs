@@ -1,0 +1,59 @@
+//! One task per device: open the link, run the driver, forward events, reconnect with back-off.
+
+use std::time::Duration;
+
+use tokio::sync::mpsc;
+use tokio::task::JoinHandle;
+use tracing::Instrument;
+
+use crate::config::DriverConfig;
+use crate::daemon::DeviceContext;
+use crate::message::DeviceState;
+
+mod aria;
+mod kts;
+
+/// A velocity command for the base: (m/s, rad/s).
+pub type MotionSender = mpsc::Sender<(f64, f64)>;
+
+/// Spawns the task of one device. Returns the task and, for a mobile base, a motion sender.
+pub fn spawn(ctx: DeviceContext, span: tracing::Span) -> (JoinHandle<()>, Option<MotionSender>) {
+    match ctx.device.driver.clone() {
+        DriverConfig::Aria(s) => {
+            let (tx, rx) = mpsc::channel(16);
+            (
+                tokio::spawn(aria::run(ctx, s, rx).instrument(span)),
+                Some(tx),
+            )
+        }
+        DriverConfig::Kts(s) => (tokio::spawn(kts::run(ctx, s).instrument(span)), None),
+        other => {
+            let kind = other.kind();
+            (
+                tokio::spawn(
+                    async move {
+                        tracing::error!(
+                            driver = kind,
+                            "driver not wired into the daemon yet; device ignored"
+                        );
+                        ctx.status(
+                            DeviceState::Closed,
+                            format!("driver {kind} not available in this build"),
+                        )
+                        .await;
+                    }
+                    .instrument(span),
+                ),
+                None,
+            )
+        }
+    }
+}
+
+/// Waits `d` or until the daemon stops; false when stopping.
+pub(crate) async fn pause(ctx: &DeviceContext, d: Duration) -> bool {
+    tokio::select! {
+        () = ctx.stop.cancelled() => false,
+        () = tokio::time::sleep(d) => true,
+    }
+}
