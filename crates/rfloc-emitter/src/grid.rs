@@ -268,6 +268,11 @@ impl OccupancyGrid {
         let mut out = ScanIntegration::default();
         if !sensor.is_finite() {
             out.beams_skipped = beams.len();
+            tracing::warn!(
+                ?sensor,
+                beams = beams.len(),
+                "occupancy grid: non-finite sensor pose, scan dropped"
+            );
             return out;
         }
         let start = Point2::new(sensor.x, sensor.y);
@@ -300,6 +305,13 @@ impl OccupancyGrid {
                 }
             }
             out.beams_used += 1;
+        }
+        if out.beams_skipped > 0 {
+            tracing::warn!(
+                skipped = out.beams_skipped,
+                used = out.beams_used,
+                "occupancy grid: scan beams rejected (non-finite or negative values)"
+            );
         }
         out
     }

@@ -309,3 +309,27 @@ pub fn simplify_path(cells: &[GridCell]) -> Vec<GridCell> {
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::FRAC_PI_2;
+
+    #[test]
+    fn heading_from_angle_rounds_to_nearest_cardinal() {
+        assert_eq!(Heading4::from_angle(0.3), Heading4::East);
+        assert_eq!(Heading4::from_angle(FRAC_PI_2 - 0.3), Heading4::North);
+        assert_eq!(Heading4::from_angle(3.0), Heading4::West);
+        assert_eq!(Heading4::from_angle(-3.0), Heading4::West);
+        assert_eq!(Heading4::from_angle(-FRAC_PI_2), Heading4::South);
+    }
+
+    #[test]
+    fn quarter_turns_are_symmetric() {
+        assert_eq!(Heading4::East.quarter_turns(Heading4::East), 0);
+        assert_eq!(Heading4::East.quarter_turns(Heading4::North), 1);
+        assert_eq!(Heading4::East.quarter_turns(Heading4::South), 1);
+        assert_eq!(Heading4::East.quarter_turns(Heading4::West), 2);
+        assert_eq!(Heading4::South.quarter_turns(Heading4::East), 1);
+    }
+}

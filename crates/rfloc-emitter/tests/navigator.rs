@@ -201,6 +201,22 @@ fn replans_when_a_new_obstacle_blocks_the_path_and_periodically() {
     assert_eq!(nav.plan_count(), plans + 1);
 }
 
+#[test]
+fn leaving_the_path_triggers_a_replan() {
+    let g = open_grid();
+    let mut nav = EmitterNavigator::new(NavigatorConfig::default());
+    let target = Some(Point2::new(6.1, 0.1));
+    assert!(
+        nav.step(&input(0.0, Pose2::new(0.1, 0.1, 0.0), target, &g, &[]))
+            .replanned
+    );
+    // Same target, robot displaced 1 m sideways (e.g. a map jump): replan from the new cell.
+    let c = nav.step(&input(0.1, Pose2::new(2.1, 1.1, 0.0), target, &g, &[]));
+    assert!(c.replanned);
+    let start = g.world_to_cell(&Point2::new(2.1, 1.1)).unwrap();
+    assert_eq!(nav.path().first(), Some(&start));
+}
+
 // ---------------------------------------------------------------------------------------------
 // Closed-loop pure simulation.
 
