@@ -21,6 +21,19 @@ use crate::nd::{rssi_byte_to_dbm, NdError, NdLayoutHint, Node};
 /// [`XBeeClient::take_unsolicited`] before the oldest is dropped.
 pub const UNSOLICITED_CAPACITY: usize = 64;
 
+/// Where [`XBeeClient::node_rssi`] takes a beacon's RSSI from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum RssiSource {
+    /// Remote `DB` (0x17 → 0x97): what the beacon measured on the coordinator's request
+    /// (transmit side of the coordinator's antenna).
+    #[default]
+    RemoteDb,
+    /// A remote `DB` to make the beacon answer, then local `DB`: what the coordinator measured on
+    /// the beacon's 0x97 reply (receive side of the coordinator's antenna). Any other packet
+    /// received between the two commands would overwrite the local value.
+    LocalDbAfterRemote,
+}
+
 /// Client settings.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ClientConfig {
@@ -39,6 +52,8 @@ pub struct ClientConfig {
     pub nd_layout: NdLayoutHint,
     /// Largest length field the decoder accepts.
     pub max_frame_data: usize,
+    /// Where [`XBeeClient::node_rssi`] takes RSSI from.
+    pub rssi_source: RssiSource,
 }
 
 impl Default for ClientConfig {
@@ -51,6 +66,7 @@ impl Default for ClientConfig {
             discovery_margin: Duration::from_millis(1000),
             nd_layout: NdLayoutHint::Auto,
             max_frame_data: DEFAULT_MAX_FRAME_DATA,
+            rssi_source: RssiSource::RemoteDb,
         }
     }
 }
@@ -436,6 +452,23 @@ where
                 status,
                 status_byte: r.status_byte,
             }),
+        }
+    }
+}
+
+impl<T> XBeeClient<T>
+where
+    T: AsyncRead + AsyncWrite + Unpin + Send,
+{
+    /// RSSI of the link to `node` in dBm from the configured [`RssiSource`]; `None` when the
+    /// beacon did not answer or the radio reports 0.
+    pub async fn node_rssi(&mut self, node: Address64) -> Result<Option<f64>, XBeeError> {
+        match self.config.rssi_source {
+            RssiSource::RemoteDb => self.remote_rssi(node).await,
+            RssiSource::LocalDbAfterRemote => match self.remote_rssi(node).await? {
+                None => Ok(None),
+                Some(_) => self.local_rssi().await,
+            },
         }
     }
 }

@@ -50,7 +50,9 @@ pub mod nd;
 pub mod probe;
 
 pub use address::{Address16, Address64};
-pub use client::{ClientConfig, ClientStats, DiscoveryEnd, NodeDiscovery, XBeeClient, XBeeError};
+pub use client::{
+    ClientConfig, ClientStats, DiscoveryEnd, NodeDiscovery, RssiSource, XBeeClient, XBeeError,
+};
 pub use codec::{
     checksum, encode_frame, ApiMode, DecodeError, DecodeStats, EncodeError, FrameDecoder,
 };

@@ -34,8 +34,8 @@ where
         Ok(self.discover().await?.nodes)
     }
 
-    /// Uses a remote `DB` query ([`XBeeClient::remote_rssi`]).
+    /// Uses the client's configured [`crate::client::RssiSource`].
     async fn node_rssi(&mut self, node: Address64) -> Result<Option<f64>, XBeeError> {
-        self.remote_rssi(node).await
+        XBeeClient::node_rssi(self, node).await
     }
 }

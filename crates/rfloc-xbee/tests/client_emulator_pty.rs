@@ -8,7 +8,8 @@ use std::time::Duration;
 
 use rfloc_xbee::{
     Address64, ApiMode, AtCommandName, AtStatus, Beacon, ClientConfig, CoordinatorEmulator,
-    DiscoveryEnd, EmulatorConfig, NdLayout, NdLayoutHint, RssiFn, RssiProbe, XBeeClient,
+    DiscoveryEnd, EmulatorConfig, NdLayout, NdLayoutHint, RssiFn, RssiProbe, RssiSource,
+    XBeeClient,
 };
 use tokio_serial::SerialStream;
 
@@ -201,6 +202,12 @@ async fn scan<P: RssiProbe>(
 
 #[tokio::test]
 async fn rssi_follows_antenna_angle_through_probe_trait() {
+    for source in [RssiSource::RemoteDb, RssiSource::LocalDbAfterRemote] {
+        rssi_follows_antenna_angle(source).await;
+    }
+}
+
+async fn rssi_follows_antenna_angle(source: RssiSource) {
     let angle = Arc::new(AtomicUsize::new(0));
     let seen = Arc::clone(&angle);
     // Beacon i is strongest when the antenna step equals i; −40 dBm on axis, −10 dB per step off.
@@ -209,7 +216,12 @@ async fn rssi_follows_antenna_angle_through_probe_trait() {
         Some(-40.0 - 10.0 * step.abs_diff(i) as f64)
     });
     let emulator = CoordinatorEmulator::new(beacons(), rssi, EmulatorConfig::default());
-    let (mut client, task) = start(emulator, ApiMode::Escaped);
+    let (client, task) = start(emulator, ApiMode::Escaped);
+    let config = ClientConfig {
+        rssi_source: source,
+        ..client.config().clone()
+    };
+    let mut client = XBeeClient::new(client.into_inner(), config);
     let table = scan(&mut client, &angle, 4).await;
     for (step, row) in table.iter().enumerate() {
         let best = row
@@ -217,7 +229,7 @@ async fn rssi_follows_antenna_angle_through_probe_trait() {
             .enumerate()
             .max_by(|a, b| a.1.partial_cmp(b.1).unwrap())
             .map(|(i, _)| i);
-        assert_eq!(best, Some(step), "row {row:?}");
+        assert_eq!(best, Some(step), "{source:?} row {row:?}");
         assert_eq!(row[step], Some(-40.0));
     }
     task.abort();
