@@ -21,3 +21,12 @@ pub use snapshot::{AverageConfig, AverageTagSet, Snapshot};
 pub use tag::TagId;
 pub use transition::{TransitionCounts, TransitionModel, TransitionPrior, TransitionRow};
 pub use value_iteration::{q_values, value_iteration, ValueIterationConfig, ValueIterationResult};
+
+pub mod database;
+pub mod filter;
+pub mod navigate;
+pub mod store;
+
+pub use database::{LearnConfig, LearnedState, Localisation, Observation, SnapshotDatabase, FORMAT_VERSION};
+pub use filter::{FilterConfig, StateFilter};
+pub use navigate::{NavCommand, NavReason, Navigator, NavigatorConfig, Plan, PlanConfig};

@@ -1,0 +1,85 @@
+//! Atomic save and load of the learned database (JSON).
+//!
+//! Saving writes the whole file to a temporary file in the same directory, `fsync`s it, renames
+//! it over the target (atomic on POSIX file systems) and `fsync`s the directory, so a crash or a
+//! failed write leaves either the old file or the new one, never a mix.
+
+use std::fs::{self, File};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use crate::database::{SnapshotDatabase, FORMAT_VERSION};
+use crate::error::SnapshotError;
+
+fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> SnapshotError + '_ {
+    move |source| SnapshotError::Io { path: path.to_path_buf(), source }
+}
+
+fn temp_path(path: &Path) -> PathBuf {
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "database".into());
+    path.with_file_name(format!(".{name}.tmp.{}", std::process::id()))
+}
+
+/// Writes a file atomically: `produce` writes the content into the temporary file; only if it
+/// and the `fsync` succeed is the temporary file renamed over `path`. On any error the temporary
+/// file is removed and `path` is untouched.
+///
+/// # Errors
+/// The first I/O error, or what `produce` returns.
+pub fn write_atomic(path: &Path, produce: impl FnOnce(&mut File) -> Result<(), SnapshotError>) -> Result<(), SnapshotError> {
+    let tmp = temp_path(path);
+    let result = (|| {
+        let mut file = File::create(&tmp).map_err(io_err(&tmp))?;
+        produce(&mut file)?;
+        file.flush().map_err(io_err(&tmp))?;
+        file.sync_all().map_err(io_err(&tmp))?;
+        drop(file);
+        fs::rename(&tmp, path).map_err(io_err(path))?;
+        Ok(())
+    })();
+    if result.is_err() {
+        let _ = fs::remove_file(&tmp);
+        return result;
+    }
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        // Persist the rename; not every platform can open a directory, so failures are ignored.
+        if let Ok(d) = File::open(dir) {
+            let _ = d.sync_all();
+        }
+    }
+    Ok(())
+}
+
+impl SnapshotDatabase {
+    /// Saves the database as JSON, atomically (see the module documentation).
+    ///
+    /// # Errors
+    /// [`SnapshotError::Io`] or [`SnapshotError::Format`].
+    pub fn save(&self, path: &Path) -> Result<(), SnapshotError> {
+        let bytes = serde_json::to_vec(self).map_err(|source| SnapshotError::Format { path: path.to_path_buf(), source })?;
+        write_atomic(path, |f| f.write_all(&bytes).map_err(io_err(path)))
+    }
+
+    /// Loads a database saved by [`SnapshotDatabase::save`].
+    ///
+    /// # Errors
+    /// [`SnapshotError::Io`], [`SnapshotError::Format`] for malformed or truncated JSON,
+    /// [`SnapshotError::Version`] for another layout version, [`SnapshotError::InvalidModel`]
+    /// when the transition model does not match the states.
+    pub fn load(path: &Path) -> Result<Self, SnapshotError> {
+        let bytes = fs::read(path).map_err(io_err(path))?;
+        let mut db: SnapshotDatabase = serde_json::from_slice(&bytes).map_err(|source| SnapshotError::Format { path: path.to_path_buf(), source })?;
+        if db.format_version != FORMAT_VERSION {
+            return Err(SnapshotError::Version { found: db.format_version, expected: FORMAT_VERSION });
+        }
+        if db.transitions.states() != db.state_count() || db.counts.states() != db.state_count() {
+            return Err(SnapshotError::InvalidModel(format!(
+                "transition model has {} states, database {}",
+                db.transitions.states(),
+                db.state_count()
+            )));
+        }
+        db.rebuild_lookup();
+        Ok(db)
+    }
+}
