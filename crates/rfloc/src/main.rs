@@ -9,6 +9,7 @@ mod message;
 mod notify;
 mod pipeline;
 mod replay;
+mod scenario;
 mod server;
 mod sim;
 mod watch;
@@ -70,6 +71,20 @@ enum Command {
         config: PathBuf,
         #[arg(short, long)]
         out: PathBuf,
+    },
+    /// Run a seed scenario against emulated devices and report its metrics next to the seed's.
+    Sim {
+        /// Scenario file (see scenarios/).
+        scenario: PathBuf,
+        /// Output folder (default out/<scenario name>).
+        #[arg(short, long)]
+        out: Option<PathBuf>,
+        /// Run only this many trials.
+        #[arg(long)]
+        trials: Option<usize>,
+        /// Simulated seconds per wall second.
+        #[arg(long, default_value_t = 20.0)]
+        time_scale: f64,
     },
     /// Print the pose stream of a running daemon.
     Watch {
@@ -202,6 +217,22 @@ fn main() -> ExitCode {
                 Err(code) => return code,
             };
             run_async(replay::replay_dir(dir, pipeline, cfg))
+        }
+        Command::Sim {
+            scenario: path,
+            out,
+            trials,
+            time_scale,
+        } => {
+            init_logging("warn");
+            run_async(scenario::run(
+                &path,
+                scenario::SimOptions {
+                    out,
+                    trials,
+                    time_scale,
+                },
+            ))
         }
         Command::Watch {
             tcp,
