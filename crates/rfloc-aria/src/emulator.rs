@@ -327,7 +327,9 @@ impl RobotEmulator {
             .div_f64(scale)
             .max(Duration::from_micros(100));
         let mut ticker = tokio::time::interval(wall_period);
-        ticker.set_missed_tick_behavior(MissedTickBehavior::Burst);
+        // A late emulator slows simulated time down rather than catching up in a burst, so a
+        // stalled process cannot make the watchdog fire on a client that pulsed on time.
+        ticker.set_missed_tick_behavior(MissedTickBehavior::Delay);
         let mut decoder = FrameDecoder::new();
         let mut buf = [0u8; 512];
         // An earlier link may have been dropped mid-session (task aborted).
