@@ -7,6 +7,7 @@ use std::time::Duration;
 use rfloc_transport::SharedClock;
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::time::Instant;
+use tracing::Instrument;
 
 use crate::custom_format::CustomFormat;
 use crate::error::{AlienError, SessionEnd};
@@ -123,6 +124,7 @@ pub struct AlienClient<T> {
     clock: SharedClock,
     stats: AlienStats,
     last_io: Instant,
+    span: tracing::Span,
 }
 
 impl<T> AlienClient<T>
@@ -148,8 +150,11 @@ where
             clock,
             stats: AlienStats::default(),
             last_io: Instant::now(),
+            span: tracing::info_span!("alien"),
         };
-        c.login().await?;
+        let span = c.span.clone();
+        c.login().instrument(span).await?;
+        tracing::debug!(parent: &c.span, "alien: logged in");
         Ok(c)
     }
 
@@ -261,6 +266,12 @@ where
     /// [`AlienError::Reader`] for `Error …` replies, [`AlienError::Session`] for
     /// `Connection Timeout.`/`Goodbye!`/busy/closed, timeouts and I/O errors.
     pub async fn command(&mut self, cmd: &str) -> Result<String, AlienError> {
+        let span = self.span.clone();
+        self.command_inner(cmd).instrument(span).await
+    }
+
+    async fn command_inner(&mut self, cmd: &str) -> Result<String, AlienError> {
+        tracing::debug!(command = cmd, "alien: send");
         let suppressed = self.config.prompt_mode == PromptMode::Suppressed;
         self.stats.commands += 1;
         self.write_line(cmd, suppressed).await?;
@@ -312,6 +323,7 @@ where
         let body = strip_echo(&body, cmd);
         if let Reply::Error { code, text } = parse_reply(&body) {
             self.stats.reader_errors += 1;
+            tracing::warn!(command = cmd, ?code, %text, "alien: reader error");
             return Err(AlienError::Reader {
                 command: cmd.to_string(),
                 code,
