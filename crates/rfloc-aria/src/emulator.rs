@@ -5,7 +5,10 @@
 //! `sip_period / time_scale` of wall time, so with `time_scale = k` the robot runs k times faster
 //! than wall time. Everything the robot does is in simulated time: accelerations, the SIP period
 //! and the watchdog. A client talking to a scaled emulator must scale its own periods too
-//! (see [`crate::ClientConfig::scaled`]).
+//! (see [`crate::ClientConfig::scaled`]): with the default 1 s pulse and `time_scale` 10 the
+//! client must pulse every 100 ms of wall time, or the 2 s (simulated) watchdog, 200 ms of wall
+//! time, stops the robot. When the emulator task falls behind wall time, ticks are delayed, not
+//! bunched: simulated time then runs slower than `time_scale`, never jumps.
 
 use std::time::Duration;
 
@@ -43,7 +46,8 @@ pub struct EmulatorConfig {
     pub identity: RobotIdentity,
     /// Conversion factors; `None` = chosen from the subclass as a client would.
     pub factors: Option<ConversionFactors>,
-    /// Simulated seconds per wall second (default 1.0).
+    /// Simulated seconds per wall second (default 1.0). Scale the client's periods by the same
+    /// factor ([`crate::ClientConfig::scaled`]).
     pub time_scale: f64,
     /// SIP period (default 100 ms).
     pub sip_period: Duration,
