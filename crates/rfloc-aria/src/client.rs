@@ -387,8 +387,9 @@ impl AriaClient {
     /// # Errors
     /// As [`AriaClient::send`].
     pub async fn set_heading(&self, heading: f64) -> Result<(), ClientError> {
+        // The robot takes 0..359 degrees; map any angle there without a clamp warning.
         let deg = to_i16_clamped("HEAD", rfloc_pose::wrap_angle(heading).to_degrees());
-        self.send(Command::Head(deg)).await
+        self.send(Command::Head(deg.rem_euclid(360))).await
     }
 
     /// DHEAD: turn by `delta` radians.

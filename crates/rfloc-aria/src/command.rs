@@ -584,6 +584,39 @@ mod tests {
     }
 
     #[test]
+    fn reference_table_commands_through_other() {
+        // §8 "More verified command packets": OPEN 1 and CLOSE 1 (ARIA form), ENCODER 2,
+        // HOSTBAUD 4, MOVE 500.
+        let other = |number, v| Command::Other {
+            number,
+            arg: Arg::Int(v),
+        };
+        assert_eq!(
+            bytes(other(1, 1)),
+            [0xFA, 0xFB, 0x06, 0x01, 0x3B, 0x01, 0x00, 0x02, 0x3B]
+        );
+        assert_eq!(
+            bytes(other(2, 1)),
+            [0xFA, 0xFB, 0x06, 0x02, 0x3B, 0x01, 0x00, 0x03, 0x3B]
+        );
+        assert_eq!(
+            bytes(other(19, 2)),
+            [0xFA, 0xFB, 0x06, 0x13, 0x3B, 0x02, 0x00, 0x15, 0x3B]
+        );
+        assert_eq!(
+            bytes(other(50, 4)),
+            [0xFA, 0xFB, 0x06, 0x32, 0x3B, 0x04, 0x00, 0x36, 0x3B]
+        );
+        assert_eq!(
+            bytes(other(8, 500)),
+            [0xFA, 0xFB, 0x06, 0x08, 0x3B, 0xF4, 0x01, 0xFC, 0x3C]
+        );
+        // The ARIA forms decode as the plain commands once the link is open.
+        let f = Frame::new(1, vec![0x3B, 0x01, 0x00]);
+        assert_eq!(Command::from_frame(&f, LinkPhase::Open), Ok(Command::Open));
+    }
+
+    #[test]
     fn string_argument_odd_length() {
         // §8 Example E: TTY2 "hi" with an odd number of data bytes.
         let tty2 = Command::Other {
