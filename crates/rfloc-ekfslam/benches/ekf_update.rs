@@ -1,4 +1,5 @@
 //! Cost of one velocity prediction plus one range-bearing update with 4, 50 and 200 beacons.
+#![allow(clippy::expect_used)]
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use nalgebra::Matrix3;
@@ -7,8 +8,12 @@ use rfloc_pose::Pose2;
 
 /// A filter with `n` beacons on a ring of radius 5 m around the origin.
 fn filter_with(n: usize) -> EkfSlam {
-    let mut f = EkfSlam::new(EkfSlamConfig::default(), Pose2::new(0.0, 0.0, 0.0), Matrix3::identity() * 1e-4)
-        .expect("valid start");
+    let mut f = EkfSlam::new(
+        EkfSlamConfig::default(),
+        Pose2::new(0.0, 0.0, 0.0),
+        Matrix3::identity() * 1e-4,
+    )
+    .expect("valid start");
     let obs: Vec<_> = (0..n)
         .map(|i| {
             let a = i as f64 / n as f64 * std::f64::consts::TAU;

@@ -60,7 +60,10 @@ pub fn evaluate(
     mapped: &[BeaconEstimate],
 ) -> Result<AccuracyReport, AccuracyError> {
     if truth.len() != estimates.len() {
-        return Err(AccuracyError::LengthMismatch { truth: truth.len(), estimates: estimates.len() });
+        return Err(AccuracyError::LengthMismatch {
+            truth: truth.len(),
+            estimates: estimates.len(),
+        });
     }
     if truth.is_empty() {
         return Err(AccuracyError::Empty);
@@ -79,7 +82,10 @@ pub fn evaluate(
         .iter()
         .map(|&(id, x, y)| BeaconError {
             id,
-            error_m: mapped.iter().find(|b| b.id == id).map(|b| (b.position.x - x).hypot(b.position.y - y)),
+            error_m: mapped
+                .iter()
+                .find(|b| b.id == id)
+                .map(|b| (b.position.x - x).hypot(b.position.y - y)),
         })
         .collect();
     Ok(AccuracyReport {
@@ -100,7 +106,11 @@ mod tests {
     fn rmse_of_known_errors() {
         let truth = vec![Pose2::new(0.0, 0.0, 3.1), Pose2::new(1.0, 0.0, 0.0)];
         let est = vec![Pose2::new(0.3, 0.4, -3.1), Pose2::new(1.0, 0.0, 0.1)];
-        let mapped = [BeaconEstimate { id: 7, position: Vector2::new(3.0, 4.0), covariance: Matrix2::identity() }];
+        let mapped = [BeaconEstimate {
+            id: 7,
+            position: Vector2::new(3.0, 4.0),
+            covariance: Matrix2::identity(),
+        }];
         let r = evaluate(&truth, &est, &[(7, 0.0, 0.0), (8, 1.0, 1.0)], &mapped).unwrap();
         assert!((r.position_rmse_m - (0.25f64 / 2.0).sqrt()).abs() < 1e-12);
         // heading errors: wrap(-3.1-3.1) = 2π-6.2 ≈ 0.0832, and 0.1
@@ -115,7 +125,10 @@ mod tests {
     fn mismatched_lengths_are_an_error() {
         assert_eq!(
             evaluate(&[Pose2::default()], &[], &[], &[]),
-            Err(AccuracyError::LengthMismatch { truth: 1, estimates: 0 })
+            Err(AccuracyError::LengthMismatch {
+                truth: 1,
+                estimates: 0
+            })
         );
         assert_eq!(evaluate(&[], &[], &[], &[]), Err(AccuracyError::Empty));
     }

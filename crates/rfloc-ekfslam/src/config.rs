@@ -15,7 +15,10 @@ pub struct VelocityNoise {
 
 impl Default for VelocityNoise {
     fn default() -> Self {
-        Self { sigma_v: 0.0119, sigma_omega: 0.0012 }
+        Self {
+            sigma_v: 0.0119,
+            sigma_omega: 0.0012,
+        }
     }
 }
 
@@ -39,7 +42,13 @@ pub struct OdometryNoise {
 
 impl Default for OdometryNoise {
     fn default() -> Self {
-        Self { trans_per_m: 0.02, rot_per_rad: 0.02, rot_per_m: 0.01, floor_m: 1e-4, floor_rad: 1e-4 }
+        Self {
+            trans_per_m: 0.02,
+            rot_per_rad: 0.02,
+            rot_per_m: 0.01,
+            floor_m: 1e-4,
+            floor_rad: 1e-4,
+        }
     }
 }
 
@@ -54,7 +63,10 @@ pub struct PathLoss {
 
 impl Default for PathLoss {
     fn default() -> Self {
-        Self { p_ref_dbm: -29.0, eta: 2.0 }
+        Self {
+            p_ref_dbm: -29.0,
+            eta: 2.0,
+        }
     }
 }
 
@@ -115,7 +127,11 @@ pub struct Gate {
 
 impl Default for Gate {
     fn default() -> Self {
-        Self { chi2_1dof: 10.828, chi2_2dof: 13.816, enabled: true }
+        Self {
+            chi2_1dof: 10.828,
+            chi2_2dof: 13.816,
+            enabled: true,
+        }
     }
 }
 
@@ -137,7 +153,12 @@ pub struct DelayedInit {
 
 impl Default for DelayedInit {
     fn default() -> Self {
-        Self { min_views: 3, max_views: 30, min_baseline_m: 0.5, max_std_m: 1.5 }
+        Self {
+            min_views: 3,
+            max_views: 30,
+            min_baseline_m: 0.5,
+            max_std_m: 1.5,
+        }
     }
 }
 

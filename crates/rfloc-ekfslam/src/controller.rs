@@ -69,7 +69,12 @@ impl WaypointController {
     /// A controller over `waypoints` (m, map frame), visited in order.
     #[must_use]
     pub fn new(config: WaypointControllerConfig, waypoints: Vec<(f64, f64)>) -> Self {
-        Self { config, waypoints, active: 0, last_omega: 0.0 }
+        Self {
+            config,
+            waypoints,
+            active: 0,
+            last_omega: 0.0,
+        }
     }
 
     /// Index of the active waypoint, `None` when done.
@@ -88,7 +93,12 @@ impl WaypointController {
     /// Non-finite input gives a stop command without changing the controller's state.
     pub fn command(&mut self, pose: &Pose2, dt: f64) -> ControlCommand {
         let c = self.config;
-        let stop = |active| ControlCommand { v: 0.0, omega: 0.0, active_waypoint: active, done: false };
+        let stop = |active| ControlCommand {
+            v: 0.0,
+            omega: 0.0,
+            active_waypoint: active,
+            done: false,
+        };
         if !(pose.is_finite() && dt.is_finite() && dt >= 0.0) {
             return stop(self.active_waypoint());
         }
@@ -105,7 +115,12 @@ impl WaypointController {
         }
         let Some((wx, wy, rho)) = target else {
             self.last_omega = 0.0;
-            return ControlCommand { v: 0.0, omega: 0.0, active_waypoint: None, done: true };
+            return ControlCommand {
+                v: 0.0,
+                omega: 0.0,
+                active_waypoint: None,
+                done: true,
+            };
         };
         let err = angle_diff((wy - pose.y).atan2(wx - pose.x), pose.theta);
         let wanted = c.k_heading * err;
@@ -120,7 +135,12 @@ impl WaypointController {
             let base = c.min_speed + (c.max_speed - c.min_speed) * radial;
             base * err.cos().max(0.0)
         };
-        ControlCommand { v, omega, active_waypoint: Some(self.active), done: false }
+        ControlCommand {
+            v,
+            omega,
+            active_waypoint: Some(self.active),
+            done: false,
+        }
     }
 }
 
@@ -130,22 +150,37 @@ mod tests {
 
     #[test]
     fn turn_command_is_rate_limited_and_saturated() {
-        let cfg = WaypointControllerConfig { max_turn_accel: 1.0, max_turn_rate: 0.5, ..Default::default() };
+        let cfg = WaypointControllerConfig {
+            max_turn_accel: 1.0,
+            max_turn_rate: 0.5,
+            ..Default::default()
+        };
         let mut c = WaypointController::new(cfg, vec![(0.0, 5.0)]);
         let pose = Pose2::new(0.0, 0.0, 0.0);
         let a = c.command(&pose, 0.1);
-        assert!((a.omega - 0.1).abs() < 1e-12, "first step limited to accel·dt: {}", a.omega);
+        assert!(
+            (a.omega - 0.1).abs() < 1e-12,
+            "first step limited to accel·dt: {}",
+            a.omega
+        );
         let mut last = a;
         for _ in 0..20 {
             last = c.command(&pose, 0.1);
         }
-        assert!((last.omega - 0.5).abs() < 1e-12, "saturates at max_turn_rate: {}", last.omega);
+        assert!(
+            (last.omega - 0.5).abs() < 1e-12,
+            "saturates at max_turn_rate: {}",
+            last.omega
+        );
         assert_eq!(last.v, 0.0, "90° off: turns on the spot");
     }
 
     #[test]
     fn switches_at_rho_min_and_reports_done() {
-        let mut c = WaypointController::new(WaypointControllerConfig::default(), vec![(1.0, 0.0), (2.0, 0.0)]);
+        let mut c = WaypointController::new(
+            WaypointControllerConfig::default(),
+            vec![(1.0, 0.0), (2.0, 0.0)],
+        );
         let a = c.command(&Pose2::new(0.0, 0.0, 0.0), 0.1);
         assert_eq!(a.active_waypoint, Some(0));
         assert!(a.v > 0.0 && a.omega.abs() < 1e-12);
@@ -171,7 +206,14 @@ mod tests {
     #[test]
     fn non_finite_pose_gives_stop() {
         let mut c = WaypointController::new(WaypointControllerConfig::default(), vec![(1.0, 1.0)]);
-        let cmd = c.command(&Pose2 { x: f64::NAN, y: 0.0, theta: 0.0 }, 0.1);
+        let cmd = c.command(
+            &Pose2 {
+                x: f64::NAN,
+                y: 0.0,
+                theta: 0.0,
+            },
+            0.1,
+        );
         assert_eq!((cmd.v, cmd.omega), (0.0, 0.0));
         assert_eq!(cmd.active_waypoint, Some(0));
     }

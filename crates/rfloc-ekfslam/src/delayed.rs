@@ -43,8 +43,14 @@ struct Scalar {
 /// Returns `(kind, value, variance)`.
 fn range_scalar(reading: &RangeReading, cfg: &EkfSlamConfig) -> (bool, f64, f64) {
     match *reading {
-        RangeReading::Metres { range_m, variance_m2 } => (false, range_m, variance_m2),
-        RangeReading::RssiDbm { rssi_dbm, variance_db2 } => match cfg.rssi_handling {
+        RangeReading::Metres {
+            range_m,
+            variance_m2,
+        } => (false, range_m, variance_m2),
+        RangeReading::RssiDbm {
+            rssi_dbm,
+            variance_db2,
+        } => match cfg.rssi_handling {
             RssiHandling::PathLossMeasurement => (true, rssi_dbm, variance_db2),
             RssiHandling::ConvertToRange => {
                 let d = cfg.path_loss.distance_for(rssi_dbm);
@@ -111,7 +117,10 @@ fn linear_guess(views: &VecDeque<View>, cfg: &EkfSlamConfig) -> Option<Vector2<f
 
 /// Tries to triangulate the beacon. Returns its position and 2×2 covariance when the views
 /// constrain it well enough (see [`crate::DelayedInit`]).
-pub(crate) fn triangulate(pending: &PendingBeacon, cfg: &EkfSlamConfig) -> Option<(Vector2<f64>, Matrix2<f64>)> {
+pub(crate) fn triangulate(
+    pending: &PendingBeacon,
+    cfg: &EkfSlamConfig,
+) -> Option<(Vector2<f64>, Matrix2<f64>)> {
     let dc = &cfg.delayed_init;
     if pending.views.len() < dc.min_views.max(2) {
         return None;
@@ -129,10 +138,20 @@ pub(crate) fn triangulate(pending: &PendingBeacon, cfg: &EkfSlamConfig) -> Optio
     for v in &pending.views {
         if let Some(r) = v.range {
             let (is_rssi, value, variance) = range_scalar(&r, cfg);
-            scalars.push(Scalar { pose: v.pose, kind: if is_rssi { Kind::Rssi } else { Kind::Range }, value, variance });
+            scalars.push(Scalar {
+                pose: v.pose,
+                kind: if is_rssi { Kind::Rssi } else { Kind::Range },
+                value,
+                variance,
+            });
         }
         if let Some(b) = v.bearing {
-            scalars.push(Scalar { pose: v.pose, kind: Kind::Bearing, value: b.bearing_rad, variance: b.variance_rad2 });
+            scalars.push(Scalar {
+                pose: v.pose,
+                kind: Kind::Bearing,
+                value: b.bearing_rad,
+                variance: b.variance_rad2,
+            });
         }
     }
     if scalars.len() < 3 {
@@ -167,7 +186,12 @@ pub(crate) fn triangulate(pending: &PendingBeacon, cfg: &EkfSlamConfig) -> Optio
     let max_cost = dof + 4.0 * (2.0 * dof).sqrt() + 10.0;
     let eig = cov.symmetric_eigenvalues();
     let max_var = eig.max();
-    if !(b.x.is_finite() && b.y.is_finite() && cost <= max_cost && max_var > 0.0 && max_var.sqrt() <= dc.max_std_m) {
+    if !(b.x.is_finite()
+        && b.y.is_finite()
+        && cost <= max_cost
+        && max_var > 0.0
+        && max_var.sqrt() <= dc.max_std_m)
+    {
         return None;
     }
     Some((b, (cov + cov.transpose()) / 2.0))

@@ -10,8 +10,8 @@ use crate::config::{CovarianceUpdate, EkfSlamConfig, RssiHandling};
 use crate::delayed::{triangulate, PendingBeacon, View};
 use crate::error::{EkfSlamError, InvalidObservation};
 use crate::models::{
-    bearing_row, inverse_local_point, inverse_range_bearing, inverse_rssi_bearing, odometry_motion, range_row,
-    rssi_row, velocity_motion, ObservationRow,
+    bearing_row, inverse_local_point, inverse_range_bearing, inverse_rssi_bearing, odometry_motion,
+    range_row, rssi_row, velocity_motion, ObservationRow,
 };
 use crate::observation::{BeaconId, BeaconObservation, ObservationOutcome, RangeReading};
 
@@ -70,9 +70,15 @@ fn finite3(m: &Matrix3<f64>) -> bool {
 impl EkfSlam {
     /// Starts a filter at `initial` with 3×3 pose covariance `initial_cov` (may be zero when the
     /// start pose defines the map frame). The covariance must be symmetric positive semi-definite.
-    pub fn new(config: EkfSlamConfig, initial: Pose2, initial_cov: Matrix3<f64>) -> Result<Self, EkfSlamError> {
+    pub fn new(
+        config: EkfSlamConfig,
+        initial: Pose2,
+        initial_cov: Matrix3<f64>,
+    ) -> Result<Self, EkfSlamError> {
         if !initial.is_finite() || !finite3(&initial_cov) {
-            return Err(EkfSlamError::NonFinite { what: "initial pose or covariance" });
+            return Err(EkfSlamError::NonFinite {
+                what: "initial pose or covariance",
+            });
         }
         let sym = (initial_cov + initial_cov.transpose()) / 2.0;
         if (initial_cov - sym).abs().max() > 1e-9 * (1.0 + initial_cov.abs().max())
@@ -122,7 +128,11 @@ impl EkfSlam {
             time,
             pose: self.pose(),
             covariance: self.pose_covariance(),
-            mode: if self.stats.updates > 0 { EstimateMode::Fix } else { EstimateMode::Degraded },
+            mode: if self.stats.updates > 0 {
+                EstimateMode::Fix
+            } else {
+                EstimateMode::Degraded
+            },
             source: "ekfslam".into(),
         }
     }
@@ -185,14 +195,24 @@ impl EkfSlam {
     /// configured [`crate::VelocityNoise`]. Touches only the pose rows and columns of P: O(n).
     pub fn predict_velocity(&mut self, v: f64, omega: f64, dt: f64) -> Result<(), EkfSlamError> {
         if !(v.is_finite() && omega.is_finite() && dt.is_finite()) {
-            return Err(EkfSlamError::NonFinite { what: "velocity command" });
+            return Err(EkfSlamError::NonFinite {
+                what: "velocity command",
+            });
         }
         if dt < 0.0 {
-            return Err(EkfSlamError::Invalid { what: "time step", detail: format!("dt = {dt} < 0") });
+            return Err(EkfSlamError::Invalid {
+                what: "time step",
+                detail: format!("dt = {dt} < 0"),
+            });
         }
         let (new, f, l) = velocity_motion(&self.pose_vec(), v, omega, dt);
         let n = &self.config.velocity_noise;
-        let q = Matrix2::new(n.sigma_v * n.sigma_v, 0.0, 0.0, n.sigma_omega * n.sigma_omega);
+        let q = Matrix2::new(
+            n.sigma_v * n.sigma_v,
+            0.0,
+            0.0,
+            n.sigma_omega * n.sigma_omega,
+        );
         self.apply_motion(&new, &f, &(l * q * l.transpose()));
         Ok(())
     }
@@ -201,7 +221,9 @@ impl EkfSlam {
     /// the previous reading (m, m, rad), with the configured [`crate::OdometryNoise`]. O(n).
     pub fn predict_odometry(&mut self, delta: Pose2) -> Result<(), EkfSlamError> {
         if !delta.is_finite() {
-            return Err(EkfSlamError::NonFinite { what: "odometry increment" });
+            return Err(EkfSlamError::NonFinite {
+                what: "odometry increment",
+            });
         }
         let d = Vector3::new(delta.x, delta.y, delta.theta);
         let (new, f, l) = odometry_motion(&self.pose_vec(), &d);
@@ -216,9 +238,15 @@ impl EkfSlam {
 
     /// Predicts with an explicit increment covariance `delta_cov` (3×3 over the increment in the
     /// robot frame) instead of the configured odometry noise.
-    pub fn predict_odometry_with_covariance(&mut self, delta: Pose2, delta_cov: Matrix3<f64>) -> Result<(), EkfSlamError> {
+    pub fn predict_odometry_with_covariance(
+        &mut self,
+        delta: Pose2,
+        delta_cov: Matrix3<f64>,
+    ) -> Result<(), EkfSlamError> {
         if !delta.is_finite() || !finite3(&delta_cov) {
-            return Err(EkfSlamError::NonFinite { what: "odometry increment" });
+            return Err(EkfSlamError::NonFinite {
+                what: "odometry increment",
+            });
         }
         let d = Vector3::new(delta.x, delta.y, delta.theta);
         let (new, f, l) = odometry_motion(&self.pose_vec(), &d);
@@ -240,7 +268,9 @@ impl EkfSlam {
         if n > 3 {
             let prm = f * self.p.view((0, 3), (3, n - 3));
             self.p.view_mut((0, 3), (3, n - 3)).copy_from(&prm);
-            self.p.view_mut((3, 0), (n - 3, 3)).copy_from(&prm.transpose());
+            self.p
+                .view_mut((3, 0), (n - 3, 3))
+                .copy_from(&prm.transpose());
         }
         self.stats.predictions += 1;
     }
@@ -285,20 +315,33 @@ impl EkfSlam {
         out
     }
 
-    fn scalars(&self, obs: &BeaconObservation, pose: &Vector3<f64>, b: &Vector2<f64>) -> Result<Vec<Scalar>, InvalidObservation> {
+    fn scalars(
+        &self,
+        obs: &BeaconObservation,
+        pose: &Vector3<f64>,
+        b: &Vector2<f64>,
+    ) -> Result<Vec<Scalar>, InvalidObservation> {
         let cfg = &self.config;
         let mut v = Vec::with_capacity(2);
         if let Some(r) = obs.range {
             let s = match r {
-                RangeReading::Metres { range_m, variance_m2 } => Scalar {
-                    row: range_row(pose, b, cfg.min_distance_m).ok_or(InvalidObservation::TooClose)?,
+                RangeReading::Metres {
+                    range_m,
+                    variance_m2,
+                } => Scalar {
+                    row: range_row(pose, b, cfg.min_distance_m)
+                        .ok_or(InvalidObservation::TooClose)?,
                     value: range_m,
                     variance: variance_m2,
                     angular: false,
                 },
-                RangeReading::RssiDbm { rssi_dbm, variance_db2 } => match cfg.rssi_handling {
+                RangeReading::RssiDbm {
+                    rssi_dbm,
+                    variance_db2,
+                } => match cfg.rssi_handling {
                     RssiHandling::PathLossMeasurement => Scalar {
-                        row: rssi_row(pose, b, &cfg.path_loss, cfg.min_distance_m).ok_or(InvalidObservation::TooClose)?,
+                        row: rssi_row(pose, b, &cfg.path_loss, cfg.min_distance_m)
+                            .ok_or(InvalidObservation::TooClose)?,
                         value: rssi_dbm,
                         variance: variance_db2,
                         angular: false,
@@ -307,7 +350,8 @@ impl EkfSlam {
                         let d = cfg.path_loss.distance_for(rssi_dbm);
                         let sd = d * variance_db2.sqrt() * cfg.path_loss.ln_distance_per_db();
                         Scalar {
-                            row: range_row(pose, b, cfg.min_distance_m).ok_or(InvalidObservation::TooClose)?,
+                            row: range_row(pose, b, cfg.min_distance_m)
+                                .ok_or(InvalidObservation::TooClose)?,
                             value: d,
                             variance: sd * sd,
                             angular: false,
@@ -319,7 +363,8 @@ impl EkfSlam {
         }
         if let Some(br) = obs.bearing {
             v.push(Scalar {
-                row: bearing_row(pose, b, cfg.min_distance_m).ok_or(InvalidObservation::TooClose)?,
+                row: bearing_row(pose, b, cfg.min_distance_m)
+                    .ok_or(InvalidObservation::TooClose)?,
                 value: br.bearing_rad,
                 variance: br.variance_rad2,
                 angular: true,
@@ -382,7 +427,11 @@ impl EkfSlam {
         };
         let nis = nu.dot(&chol.solve(&nu));
         let gate = &self.config.gate;
-        let limit = if m == 1 { gate.chi2_1dof } else { gate.chi2_2dof };
+        let limit = if m == 1 {
+            gate.chi2_1dof
+        } else {
+            gate.chi2_2dof
+        };
         if !nis.is_finite() {
             self.stats.invalid += 1;
             return ObservationOutcome::Invalid(InvalidObservation::SingularInnovation);
@@ -423,19 +472,38 @@ impl EkfSlam {
         let cfg = self.config;
         if let (Some(r), Some(b)) = (obs.range, obs.bearing) {
             let (pos, gv, meas_cov) = match (r, cfg.rssi_handling) {
-                (RangeReading::RssiDbm { rssi_dbm, variance_db2 }, RssiHandling::PathLossMeasurement) => {
-                    let (pos, gv, gz) = inverse_rssi_bearing(&pose, rssi_dbm, b.bearing_rad, &cfg.path_loss);
+                (
+                    RangeReading::RssiDbm {
+                        rssi_dbm,
+                        variance_db2,
+                    },
+                    RssiHandling::PathLossMeasurement,
+                ) => {
+                    let (pos, gv, gz) =
+                        inverse_rssi_bearing(&pose, rssi_dbm, b.bearing_rad, &cfg.path_loss);
                     let r = Matrix2::new(variance_db2, 0.0, 0.0, b.variance_rad2);
                     (pos, gv, gz * r * gz.transpose())
                 }
-                (RangeReading::RssiDbm { rssi_dbm, variance_db2 }, RssiHandling::ConvertToRange) => {
+                (
+                    RangeReading::RssiDbm {
+                        rssi_dbm,
+                        variance_db2,
+                    },
+                    RssiHandling::ConvertToRange,
+                ) => {
                     let d = cfg.path_loss.distance_for(rssi_dbm);
                     let sd = d * variance_db2.sqrt() * cfg.path_loss.ln_distance_per_db();
                     let (pos, gv, gz) = inverse_range_bearing(&pose, d, b.bearing_rad);
                     let r = Matrix2::new(sd * sd, 0.0, 0.0, b.variance_rad2);
                     (pos, gv, gz * r * gz.transpose())
                 }
-                (RangeReading::Metres { range_m, variance_m2 }, _) => {
+                (
+                    RangeReading::Metres {
+                        range_m,
+                        variance_m2,
+                    },
+                    _,
+                ) => {
                     let (pos, gv, gz) = inverse_range_bearing(&pose, range_m, b.bearing_rad);
                     let r = Matrix2::new(variance_m2, 0.0, 0.0, b.variance_rad2);
                     (pos, gv, gz * r * gz.transpose())
@@ -447,7 +515,11 @@ impl EkfSlam {
         }
         let dc = cfg.delayed_init;
         let entry = self.pending.entry(obs.id).or_default();
-        entry.views.push_back(View { pose, range: obs.range, bearing: obs.bearing });
+        entry.views.push_back(View {
+            pose,
+            range: obs.range,
+            bearing: obs.bearing,
+        });
         while entry.views.len() > dc.max_views.max(1) {
             entry.views.pop_front();
         }
@@ -468,7 +540,13 @@ impl EkfSlam {
 
     /// Bailey-style augmentation: `P_LL = G_v P_vv G_vᵀ + C_z`, `P_Lx = G_v P_vx` for every
     /// existing state `x` (pose and all beacons).
-    fn augment(&mut self, id: BeaconId, pos: &Vector2<f64>, gv: &Matrix2x3<f64>, meas_cov: &Matrix2<f64>) {
+    fn augment(
+        &mut self,
+        id: BeaconId,
+        pos: &Vector2<f64>,
+        gv: &Matrix2x3<f64>,
+        meas_cov: &Matrix2<f64>,
+    ) {
         let n = self.x.len();
         let plx = gv * self.p.view((0, 0), (3, n));
         let pvv = self.p.fixed_view::<3, 3>(0, 0).into_owned();
@@ -495,8 +573,14 @@ fn validate(obs: &BeaconObservation) -> Result<(), InvalidObservation> {
     }
     if let Some(r) = obs.range {
         let (v, var, metres) = match r {
-            RangeReading::Metres { range_m, variance_m2 } => (range_m, variance_m2, true),
-            RangeReading::RssiDbm { rssi_dbm, variance_db2 } => (rssi_dbm, variance_db2, false),
+            RangeReading::Metres {
+                range_m,
+                variance_m2,
+            } => (range_m, variance_m2, true),
+            RangeReading::RssiDbm {
+                rssi_dbm,
+                variance_db2,
+            } => (rssi_dbm, variance_db2, false),
         };
         if !(v.is_finite() && var.is_finite()) {
             return Err(InvalidObservation::NonFinite);

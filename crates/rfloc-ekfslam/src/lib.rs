@@ -23,10 +23,12 @@ pub mod models;
 mod observation;
 
 pub use config::{
-    twist_from_wheel_speeds, CovarianceUpdate, DelayedInit, EkfSlamConfig, Gate, OdometryNoise, PathLoss, RssiHandling,
-    VelocityNoise,
+    twist_from_wheel_speeds, CovarianceUpdate, DelayedInit, EkfSlamConfig, Gate, OdometryNoise,
+    PathLoss, RssiHandling, VelocityNoise,
 };
 pub use controller::{ControlCommand, WaypointController, WaypointControllerConfig};
 pub use error::{EkfSlamError, InvalidObservation};
 pub use filter::{BeaconEstimate, EkfSlam, FilterStats};
-pub use observation::{BeaconId, BeaconObservation, BearingReading, ObservationOutcome, RangeReading};
+pub use observation::{
+    BeaconId, BeaconObservation, BearingReading, ObservationOutcome, RangeReading,
+};

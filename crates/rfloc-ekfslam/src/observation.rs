@@ -50,34 +50,72 @@ impl BeaconObservation {
     /// A range (m) and bearing (rad) observation with standard deviations `sigma_r` (m) and
     /// `sigma_b` (rad).
     #[must_use]
-    pub fn range_bearing(id: BeaconId, range_m: f64, bearing_rad: f64, sigma_r: f64, sigma_b: f64) -> Self {
+    pub fn range_bearing(
+        id: BeaconId,
+        range_m: f64,
+        bearing_rad: f64,
+        sigma_r: f64,
+        sigma_b: f64,
+    ) -> Self {
         Self {
             id,
-            range: Some(RangeReading::Metres { range_m, variance_m2: sigma_r * sigma_r }),
-            bearing: Some(BearingReading { bearing_rad, variance_rad2: sigma_b * sigma_b }),
+            range: Some(RangeReading::Metres {
+                range_m,
+                variance_m2: sigma_r * sigma_r,
+            }),
+            bearing: Some(BearingReading {
+                bearing_rad,
+                variance_rad2: sigma_b * sigma_b,
+            }),
         }
     }
 
     /// An RSSI (dBm) and bearing (rad) observation with standard deviations in dB and rad.
     #[must_use]
-    pub fn rssi_bearing(id: BeaconId, rssi_dbm: f64, bearing_rad: f64, sigma_db: f64, sigma_b: f64) -> Self {
+    pub fn rssi_bearing(
+        id: BeaconId,
+        rssi_dbm: f64,
+        bearing_rad: f64,
+        sigma_db: f64,
+        sigma_b: f64,
+    ) -> Self {
         Self {
             id,
-            range: Some(RangeReading::RssiDbm { rssi_dbm, variance_db2: sigma_db * sigma_db }),
-            bearing: Some(BearingReading { bearing_rad, variance_rad2: sigma_b * sigma_b }),
+            range: Some(RangeReading::RssiDbm {
+                rssi_dbm,
+                variance_db2: sigma_db * sigma_db,
+            }),
+            bearing: Some(BearingReading {
+                bearing_rad,
+                variance_rad2: sigma_b * sigma_b,
+            }),
         }
     }
 
     /// An RSSI-only observation (no bearing).
     #[must_use]
     pub fn rssi_only(id: BeaconId, rssi_dbm: f64, sigma_db: f64) -> Self {
-        Self { id, range: Some(RangeReading::RssiDbm { rssi_dbm, variance_db2: sigma_db * sigma_db }), bearing: None }
+        Self {
+            id,
+            range: Some(RangeReading::RssiDbm {
+                rssi_dbm,
+                variance_db2: sigma_db * sigma_db,
+            }),
+            bearing: None,
+        }
     }
 
     /// A bearing-only observation.
     #[must_use]
     pub fn bearing_only(id: BeaconId, bearing_rad: f64, sigma_b: f64) -> Self {
-        Self { id, range: None, bearing: Some(BearingReading { bearing_rad, variance_rad2: sigma_b * sigma_b }) }
+        Self {
+            id,
+            range: None,
+            bearing: Some(BearingReading {
+                bearing_rad,
+                variance_rad2: sigma_b * sigma_b,
+            }),
+        }
     }
 }
 

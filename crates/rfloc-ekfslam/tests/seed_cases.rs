@@ -4,6 +4,8 @@
 //! not give the start pose or the measurement rate: here the robot starts at (1, 1) facing +y,
 //! measures every beacon once per second and the controller runs at 10 Hz.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers may panic
+
 mod common;
 
 use common::{gauss, range_bearing, step_truth};
@@ -11,7 +13,9 @@ use nalgebra::Matrix3;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rfloc_ekfslam::accuracy::{evaluate, AccuracyReport};
-use rfloc_ekfslam::{BeaconObservation, EkfSlam, EkfSlamConfig, WaypointController, WaypointControllerConfig};
+use rfloc_ekfslam::{
+    BeaconObservation, EkfSlam, EkfSlamConfig, WaypointController, WaypointControllerConfig,
+};
 use rfloc_pose::Pose2;
 
 #[derive(Clone, Copy)]
@@ -22,7 +26,12 @@ enum Sensor {
     RssiBearing,
 }
 
-fn run(waypoints: &[(f64, f64)], beacons: &[(u64, f64, f64)], sensor: Sensor, seed: u64) -> (AccuracyReport, bool) {
+fn run(
+    waypoints: &[(f64, f64)],
+    beacons: &[(u64, f64, f64)],
+    sensor: Sensor,
+    seed: u64,
+) -> (AccuracyReport, bool) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let cfg = EkfSlamConfig::default();
     let (sv, sw) = (cfg.velocity_noise.sigma_v, cfg.velocity_noise.sigma_omega);
@@ -49,9 +58,13 @@ fn run(waypoints: &[(f64, f64)], beacons: &[(u64, f64, f64)], sensor: Sensor, se
                     let (r, b) = range_bearing(&truth, bx, by);
                     let b = b + gauss(&mut rng, sigma_b);
                     match sensor {
-                        Sensor::RangeBearing => {
-                            BeaconObservation::range_bearing(id, (r + gauss(&mut rng, sigma_r)).max(0.1), b, sigma_r, sigma_b)
-                        }
+                        Sensor::RangeBearing => BeaconObservation::range_bearing(
+                            id,
+                            (r + gauss(&mut rng, sigma_r)).max(0.1),
+                            b,
+                            sigma_r,
+                            sigma_b,
+                        ),
                         Sensor::RssiBearing => {
                             let z = cfg.path_loss.rssi_at(r) + gauss(&mut rng, sigma_db);
                             BeaconObservation::rssi_bearing(id, z, b, sigma_db, sigma_b)
@@ -67,7 +80,12 @@ fn run(waypoints: &[(f64, f64)], beacons: &[(u64, f64, f64)], sensor: Sensor, se
     (evaluate(&tr, &es, beacons, &ekf.beacons()).unwrap(), done)
 }
 
-fn summarise(name: &str, waypoints: &[(f64, f64)], beacons: &[(u64, f64, f64)], sensor: Sensor) -> (f64, f64, Vec<f64>) {
+fn summarise(
+    name: &str,
+    waypoints: &[(f64, f64)],
+    beacons: &[(u64, f64, f64)],
+    sensor: Sensor,
+) -> (f64, f64, Vec<f64>) {
     let seeds = 10u64;
     let (mut pos, mut head) = (0.0, 0.0);
     let mut beac = vec![0.0; beacons.len()];
@@ -92,13 +110,27 @@ fn summarise(name: &str, waypoints: &[(f64, f64)], beacons: &[(u64, f64, f64)], 
 }
 
 const CASE_I_WP: [(f64, f64); 4] = [(2.0, 2.0), (2.0, 7.0), (7.0, 7.0), (7.0, 2.0)];
-const CASE_I_B: [(u64, f64, f64); 4] = [(1, 0.0, 3.5), (2, 6.5, 2.5), (3, 4.0, 7.25), (4, 0.0, 8.0)];
-const CASE_II_WP: [(f64, f64); 6] = [(9.0, 3.0), (5.0, 5.0), (3.0, 7.0), (8.0, 8.0), (8.0, 2.0), (2.0, 2.0)];
-const CASE_II_B: [(u64, f64, f64); 4] = [(1, 0.0, 0.0), (2, 9.0, 2.0), (3, 4.0, 4.0), (4, 8.0, 7.0)];
+const CASE_I_B: [(u64, f64, f64); 4] =
+    [(1, 0.0, 3.5), (2, 6.5, 2.5), (3, 4.0, 7.25), (4, 0.0, 8.0)];
+const CASE_II_WP: [(f64, f64); 6] = [
+    (9.0, 3.0),
+    (5.0, 5.0),
+    (3.0, 7.0),
+    (8.0, 8.0),
+    (8.0, 2.0),
+    (2.0, 2.0),
+];
+const CASE_II_B: [(u64, f64, f64); 4] =
+    [(1, 0.0, 0.0), (2, 9.0, 2.0), (3, 4.0, 4.0), (4, 8.0, 7.0)];
 
 #[test]
 fn case_one_range_bearing() {
-    let (pos, head, beac) = summarise("case I range+bearing", &CASE_I_WP, &CASE_I_B, Sensor::RangeBearing);
+    let (pos, head, beac) = summarise(
+        "case I range+bearing",
+        &CASE_I_WP,
+        &CASE_I_B,
+        Sensor::RangeBearing,
+    );
     // Seed Table 3.2: 0.69 m, 0.04 rad, beacons 0.25–0.36 m. Loose regression bounds:
     assert!(pos < 0.1 && head < 0.02, "{pos} {head}");
     assert!(beac.iter().all(|b| *b < 1.0), "{beac:?}");
@@ -106,7 +138,12 @@ fn case_one_range_bearing() {
 
 #[test]
 fn case_two_range_bearing() {
-    let (pos, head, beac) = summarise("case II range+bearing", &CASE_II_WP, &CASE_II_B, Sensor::RangeBearing);
+    let (pos, head, beac) = summarise(
+        "case II range+bearing",
+        &CASE_II_WP,
+        &CASE_II_B,
+        Sensor::RangeBearing,
+    );
     // Seed Table 3.3: 0.15 m, 0.14 rad, beacons 0.21–0.73 m.
     assert!(pos < 0.1 && head < 0.02, "{pos} {head}");
     assert!(beac.iter().all(|b| *b < 1.0), "{beac:?}");
@@ -114,7 +151,12 @@ fn case_two_range_bearing() {
 
 #[test]
 fn case_one_rssi_bearing() {
-    let (pos, head, beac) = summarise("case I rssi+bearing", &CASE_I_WP, &CASE_I_B, Sensor::RssiBearing);
+    let (pos, head, beac) = summarise(
+        "case I rssi+bearing",
+        &CASE_I_WP,
+        &CASE_I_B,
+        Sensor::RssiBearing,
+    );
     assert!(pos < 0.1 && head < 0.02, "{pos} {head}");
     assert!(beac.iter().all(|b| *b < 1.0), "{beac:?}");
 }

@@ -62,7 +62,11 @@ impl TagGrid {
         if !(bucket_m.is_finite() && bucket_m > 0.0) {
             return Err(GridError::Geometry(format!("bucket size {bucket_m}")));
         }
-        Ok(Self { tags: HashMap::new(), buckets: HashMap::new(), bucket_m })
+        Ok(Self {
+            tags: HashMap::new(),
+            buckets: HashMap::new(),
+            bucket_m,
+        })
     }
 
     /// A regular `cols × rows` grid; `uid_of(col, row)` names each tag.
@@ -84,17 +88,28 @@ impl TagGrid {
     /// The nine-tag field of seed 002 Table 9 with the full UIDs used in the reference captures.
     #[must_use]
     pub fn seed002_test_field() -> Self {
-        let mut g = Self { tags: HashMap::new(), buckets: HashMap::new(), bucket_m: 0.1 };
+        let mut g = Self {
+            tags: HashMap::new(),
+            buckets: HashMap::new(),
+            bucket_m: 0.1,
+        };
         for (suffix, x_mm, y_mm) in SEED002_TABLE9 {
             // Cannot fail: distinct suffixes and finite coordinates.
-            let _ = g.insert(SEED002_UID_PREFIX | TagUid::from(suffix), x_mm / 1000.0, y_mm / 1000.0);
+            let _ = g.insert(
+                SEED002_UID_PREFIX | TagUid::from(suffix),
+                x_mm / 1000.0,
+                y_mm / 1000.0,
+            );
         }
         g
     }
 
     fn key(&self, x: f64, y: f64) -> (i64, i64) {
         #[allow(clippy::cast_possible_truncation)]
-        ((x / self.bucket_m).floor() as i64, (y / self.bucket_m).floor() as i64)
+        (
+            (x / self.bucket_m).floor() as i64,
+            (y / self.bucket_m).floor() as i64,
+        )
     }
 
     /// Adds a tag at `(x, y)` metres.
@@ -112,7 +127,13 @@ impl TagGrid {
     }
 
     /// Adds a tag at grid cell `(col, row)` of `layout`.
-    pub fn insert_cell(&mut self, uid: TagUid, layout: GridLayout, col: u32, row: u32) -> Result<(), GridError> {
+    pub fn insert_cell(
+        &mut self,
+        uid: TagUid,
+        layout: GridLayout,
+        col: u32,
+        row: u32,
+    ) -> Result<(), GridError> {
         if !(layout.pitch_m.is_finite() && layout.pitch_m > 0.0) {
             return Err(GridError::Geometry(format!("pitch {}", layout.pitch_m)));
         }
@@ -190,11 +211,20 @@ mod tests {
 
     #[test]
     fn neighbourhood_query_and_duplicates() {
-        let layout = GridLayout { pitch_m: 0.1, origin_m: (0.0, 0.0) };
+        let layout = GridLayout {
+            pitch_m: 0.1,
+            origin_m: (0.0, 0.0),
+        };
         let mut g = TagGrid::regular(layout, 5, 5, |c, r| u64::from(r * 5 + c)).unwrap();
         let near = g.tags_within(0.2, 0.2, 0.1001);
-        assert_eq!(near.iter().map(|t| t.0).collect::<Vec<_>>(), vec![7, 11, 12, 13, 17]);
-        assert_eq!(g.insert(12, 1.0, 1.0), Err(GridError::Duplicate { uid: 12 }));
+        assert_eq!(
+            near.iter().map(|t| t.0).collect::<Vec<_>>(),
+            vec![7, 11, 12, 13, 17]
+        );
+        assert_eq!(
+            g.insert(12, 1.0, 1.0),
+            Err(GridError::Duplicate { uid: 12 })
+        );
         assert!(g.insert(99, f64::NAN, 0.0).is_err());
         assert!(TagGrid::new(0.0).is_err());
         assert!(g.tags_within(f64::NAN, 0.0, 1.0).is_empty());

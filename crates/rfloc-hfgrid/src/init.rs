@@ -49,9 +49,9 @@ impl Default for InitialPoseConfig {
     fn default() -> Self {
         Self {
             antenna_offset_m: (-0.10, 0.0),
-            coarse_step_m: 0.006,
-            coarse_heading_step_rad: 4f64.to_radians(),
-            fine_points_per_half: 8,
+            coarse_step_m: 0.008,
+            coarse_heading_step_rad: 5f64.to_radians(),
+            fine_points_per_half: 10,
             use_non_detections: true,
             min_usable_stops: 3,
             min_distinct_tags: 2,
@@ -132,7 +132,13 @@ impl InitialPose {
     /// As a [`PoseEstimate`] stamped `time`.
     #[must_use]
     pub fn to_estimate(&self, time: f64) -> PoseEstimate {
-        PoseEstimate { time, pose: self.pose, covariance: self.covariance, mode: EstimateMode::Fix, source: "hfgrid-init".into() }
+        PoseEstimate {
+            time,
+            pose: self.pose,
+            covariance: self.covariance,
+            mode: EstimateMode::Fix,
+            source: "hfgrid-init".into(),
+        }
     }
 }
 
@@ -143,11 +149,15 @@ struct StopEvidence {
     missed: Vec<(f64, f64)>,
 }
 
+/// A known tag's pooled reports: UID, position (m) and the normalised histogram of RSSI values.
+pub(crate) type PooledTag = (TagUid, (f64, f64), [f64; 8]);
+
 /// Pools the reports of one stop into per-tag value histograms (known tags only).
+/// Returns the pooled tags, the number of unknown-UID reports and of invalid-RSSI reports.
 pub(crate) fn pool_reports(
     grid: &TagGrid,
     readings: &[crate::reading::TagReading],
-) -> (Vec<(TagUid, (f64, f64), [f64; 8])>, usize, usize) {
+) -> (Vec<PooledTag>, usize, usize) {
     let mut counts: HashMap<TagUid, [f64; 8]> = HashMap::new();
     let (mut unknown, mut invalid) = (0, 0);
     for r in readings {
@@ -178,7 +188,10 @@ pub(crate) fn pool_reports(
 
 /// Circular span of a set of angles: 2π minus the largest gap between neighbours.
 fn heading_span(headings: &[f64]) -> f64 {
-    let mut h: Vec<f64> = headings.iter().map(|a| a.rem_euclid(std::f64::consts::TAU)).collect();
+    let mut h: Vec<f64> = headings
+        .iter()
+        .map(|a| a.rem_euclid(std::f64::consts::TAU))
+        .collect();
     h.sort_by(f64::total_cmp);
     if h.len() < 2 {
         return 0.0;
@@ -225,7 +238,10 @@ impl AntennaMap {
         if ix >= self.nx || iy >= self.ny {
             return f64::NEG_INFINITY;
         }
-        self.values.get(iy * self.nx + ix).copied().unwrap_or(f64::NEG_INFINITY)
+        self.values
+            .get(iy * self.nx + ix)
+            .copied()
+            .unwrap_or(f64::NEG_INFINITY)
     }
 }
 
@@ -241,7 +257,11 @@ fn compile<'a>(evidence: &'a [StopEvidence], table: &LikelihoodTable) -> Vec<Com
         .iter()
         .map(|ev| CompiledStop {
             heading: ev.heading,
-            reported: ev.reported.iter().map(|(pos, w)| (*pos, table.report_curve(w))).collect(),
+            reported: ev
+                .reported
+                .iter()
+                .map(|(pos, w)| (*pos, table.report_curve(w)))
+                .collect(),
             missed: &ev.missed,
         })
         .collect()
@@ -267,7 +287,11 @@ impl InitialPoseSolver {
     /// A solver for `grid` with RSSI model `model`.
     #[must_use]
     pub fn new(grid: TagGrid, model: RssiModel, config: InitialPoseConfig) -> Self {
-        Self { grid, model, config }
+        Self {
+            grid,
+            model,
+            config,
+        }
     }
 
     /// The grid in use.
@@ -279,7 +303,8 @@ impl InitialPoseSolver {
     /// Estimates the pose at the start of the turn from the readings of each stop.
     pub fn solve(&self, stops: &[TurnStop]) -> Result<InitialPose, InitError> {
         let c = &self.config;
-        if !(c.coarse_step_m > 0.0 && c.coarse_heading_step_rad > 0.0 && c.fine_points_per_half > 0) {
+        if !(c.coarse_step_m > 0.0 && c.coarse_heading_step_rad > 0.0 && c.fine_points_per_half > 0)
+        {
             return Err(InitError::InvalidConfig("steps must be positive".into()));
         }
         if stops.is_empty() {
@@ -304,16 +329,29 @@ impl InitialPoseSolver {
         }
         distinct.sort_unstable();
         distinct.dedup();
-        let usable: Vec<f64> = pooled.iter().filter(|(_, p)| !p.is_empty()).map(|(h, _)| *h).collect();
+        let usable: Vec<f64> = pooled
+            .iter()
+            .filter(|(_, p)| !p.is_empty())
+            .map(|(h, _)| *h)
+            .collect();
         if usable.len() < c.min_usable_stops {
-            return Err(InitError::TooFewUsableStops { usable: usable.len(), required: c.min_usable_stops });
+            return Err(InitError::TooFewUsableStops {
+                usable: usable.len(),
+                required: c.min_usable_stops,
+            });
         }
         if distinct.len() < c.min_distinct_tags {
-            return Err(InitError::TooFewDistinctTags { found: distinct.len(), required: c.min_distinct_tags });
+            return Err(InitError::TooFewDistinctTags {
+                found: distinct.len(),
+                required: c.min_distinct_tags,
+            });
         }
         let span = heading_span(&usable);
         if span + 1e-9 < c.min_heading_span_rad {
-            return Err(InitError::InsufficientHeadingSpan { span_rad: span, required_rad: c.min_heading_span_rad });
+            return Err(InitError::InsufficientHeadingSpan {
+                span_rad: span,
+                required_rad: c.min_heading_span_rad,
+            });
         }
         // The centre lies within `arm + range` of every reported tag: intersect those boxes
         // (falling back to their union if a stray report makes the intersection empty).
@@ -332,8 +370,11 @@ impl InitialPoseSolver {
                 uy_hi = uy_hi.max(y + hard);
             }
         }
-        let (cx_lo, cx_hi, cy_lo, cy_hi) =
-            if ix_lo < ix_hi && iy_lo < iy_hi { (ix_lo, ix_hi, iy_lo, iy_hi) } else { (ux_lo, ux_hi, uy_lo, uy_hi) };
+        let (cx_lo, cx_hi, cy_lo, cy_hi) = if ix_lo < ix_hi && iy_lo < iy_hi {
+            (ix_lo, ix_hi, iy_lo, iy_hi)
+        } else {
+            (ux_lo, ux_hi, uy_lo, uy_hi)
+        };
         let coarse_table = LikelihoodTable::new(&self.model, c.coarse_step_m, 0.0005);
         let reach = coarse_table.reach_m;
         let mid = ((cx_lo + cx_hi) / 2.0, (cy_lo + cy_hi) / 2.0);
@@ -352,7 +393,11 @@ impl InitialPoseSolver {
                 } else {
                     Vec::new()
                 };
-                StopEvidence { heading: *h, reported, missed }
+                StopEvidence {
+                    heading: *h,
+                    reported,
+                    missed,
+                }
             })
             .collect();
 
@@ -369,11 +414,17 @@ impl InitialPoseSolver {
         let maps: Vec<AntennaMap> = evidence
             .iter()
             .map(|ev| {
-                let base: f64 = ev.reported.iter().map(|(_, w)| coarse_table.log_report(w, far)).sum();
+                let base: f64 = ev
+                    .reported
+                    .iter()
+                    .map(|(_, w)| coarse_table.log_report(w, far))
+                    .sum();
                 let mut values = vec![base; mnx * mny];
                 let mut stamp = |tx: f64, ty: f64, f: &dyn Fn(f64) -> f64| {
                     let lo = |v: f64, o: f64| (((v - reach - o) / res).floor().max(0.0)) as usize;
-                    let hi = |v: f64, o: f64, n: usize| ((((v + reach - o) / res).ceil().max(0.0)) as usize).min(n);
+                    let hi = |v: f64, o: f64, n: usize| {
+                        ((((v + reach - o) / res).ceil().max(0.0)) as usize).min(n)
+                    };
                     for iy in lo(ty, my0)..hi(ty, my0, mny) {
                         let y = my0 + steps(iy) * res;
                         for ix in lo(tx, mx0)..hi(tx, mx0, mnx) {
@@ -393,14 +444,23 @@ impl InitialPoseSolver {
                 for (tx, ty) in &ev.missed {
                     stamp(*tx, *ty, &|d| coarse_table.log_miss(d));
                 }
-                AntennaMap { x0: mx0, y0: my0, res, nx: mnx, ny: mny, values }
+                AntennaMap {
+                    x0: mx0,
+                    y0: my0,
+                    res,
+                    nx: mnx,
+                    ny: mny,
+                    values,
+                }
             })
             .collect();
         #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let (nx, ny, nh) = (
             ((cx_hi - cx_lo) / c.coarse_step_m).ceil() as usize + 1,
             ((cy_hi - cy_lo) / c.coarse_step_m).ceil() as usize + 1,
-            (std::f64::consts::TAU / c.coarse_heading_step_rad).round().max(1.0) as usize,
+            (std::f64::consts::TAU / c.coarse_heading_step_rad)
+                .round()
+                .max(1.0) as usize,
         );
         let hstep = std::f64::consts::TAU / steps(nh);
         let mut coarse: Vec<(f64, f64, f64, f64)> = Vec::with_capacity(nx * ny * nh);
@@ -417,7 +477,11 @@ impl InitialPoseSolver {
                 let y = cy_lo + steps(iy) * c.coarse_step_m;
                 for ix in 0..nx {
                     let x = cx_lo + steps(ix) * c.coarse_step_m;
-                    let l: f64 = maps.iter().zip(&offsets).map(|(m, (ox, oy))| m.get(x + ox, y + oy)).sum();
+                    let l: f64 = maps
+                        .iter()
+                        .zip(&offsets)
+                        .map(|(m, (ox, oy))| m.get(x + ox, y + oy))
+                        .sum();
                     coarse.push((x, y, th, l));
                 }
             }
@@ -448,7 +512,12 @@ impl InitialPoseSolver {
                         .iter()
                         .map(|ev| {
                             let (s, co) = (th + ev.heading).sin_cos();
-                            stop_log_likelihood(&fine_table, ev, x + co * ax - s * ay, y + s * ax + co * ay)
+                            stop_log_likelihood(
+                                &fine_table,
+                                ev,
+                                x + co * ax - s * ay,
+                                y + s * ax + co * ay,
+                            )
                         })
                         .sum();
                     fine.push((x, y, th, l));
@@ -458,24 +527,44 @@ impl InitialPoseSolver {
         let (mean, cov_fine) = moments(&fine, best.2, (fxy, fxy, fh))
             .ok_or_else(|| InitError::InvalidConfig("degenerate fine posterior".into()))?;
         // Coarse (tempered) posterior: how much mass lies outside the fine window?
-        let (cmean, cov_coarse) = moments(&coarse, mean.z, (c.coarse_step_m, c.coarse_step_m, hstep))
-            .ok_or_else(|| InitError::InvalidConfig("degenerate coarse posterior".into()))?;
+        let (cmean, cov_coarse) =
+            moments(&coarse, mean.z, (c.coarse_step_m, c.coarse_step_m, hstep))
+                .ok_or_else(|| InitError::InvalidConfig("degenerate coarse posterior".into()))?;
         let lmax = best.3;
         let (mut inside, mut total) = (0.0, 0.0);
         for &(x, y, th, l) in coarse.iter().filter(|s| s.3 - lmax > -30.0) {
             let w = (l - lmax).exp();
             total += w;
-            if (x - best.0).abs() <= half_xy && (y - best.1).abs() <= half_xy && angle_diff(th, best.2).abs() <= half_h {
+            if (x - best.0).abs() <= half_xy
+                && (y - best.1).abs() <= half_xy
+                && angle_diff(th, best.2).abs() <= half_h
+            {
                 inside += w;
             }
         }
-        let outside_fraction = if total > 0.0 { 1.0 - inside / total } else { 1.0 };
+        let outside_fraction = if total > 0.0 {
+            1.0 - inside / total
+        } else {
+            1.0
+        };
         let _ = cmean;
-        let covariance = if outside_fraction > 0.05 { cov_coarse } else { cov_fine };
-        let pos_std = covariance.fixed_view::<2, 2>(0, 0).symmetric_eigenvalues().max().max(0.0).sqrt();
+        let covariance = if outside_fraction > 0.05 {
+            cov_coarse
+        } else {
+            cov_fine
+        };
+        let pos_std = covariance
+            .fixed_view::<2, 2>(0, 0)
+            .symmetric_eigenvalues()
+            .max()
+            .max(0.0)
+            .sqrt();
         let head_std = covariance[(2, 2)].max(0.0).sqrt();
         if pos_std > c.max_position_std_m || head_std > c.max_heading_std_rad {
-            return Err(InitError::Ambiguous { position_std_m: pos_std, heading_std_rad: head_std });
+            return Err(InitError::Ambiguous {
+                position_std_m: pos_std,
+                heading_std_rad: head_std,
+            });
         }
         Ok(InitialPose {
             pose: Pose2::new(mean.x, mean.y, mean.z),
@@ -490,8 +579,16 @@ impl InitialPoseSolver {
 
 /// Posterior mean and covariance of weighted samples `(x, y, θ, log w)`; θ is taken relative to
 /// `theta_ref` (wrapped) so the moments are local. Adds the grid quantisation `step²/12`.
-fn moments(samples: &[(f64, f64, f64, f64)], theta_ref: f64, step: (f64, f64, f64)) -> Option<(Vector3<f64>, Matrix3<f64>)> {
-    let lmax = samples.iter().map(|s| s.3).filter(|l| l.is_finite()).fold(f64::NEG_INFINITY, f64::max);
+fn moments(
+    samples: &[(f64, f64, f64, f64)],
+    theta_ref: f64,
+    step: (f64, f64, f64),
+) -> Option<(Vector3<f64>, Matrix3<f64>)> {
+    let lmax = samples
+        .iter()
+        .map(|s| s.3)
+        .filter(|l| l.is_finite())
+        .fold(f64::NEG_INFINITY, f64::max);
     if !lmax.is_finite() {
         return None;
     }
@@ -514,6 +611,10 @@ fn moments(samples: &[(f64, f64, f64, f64)], theta_ref: f64, step: (f64, f64, f6
         let d = Vector3::new(x - m.x, y - m.y, angle_diff(th, theta_ref) - m.z);
         cov += w * d * d.transpose();
     }
-    cov += Matrix3::from_diagonal(&Vector3::new(step.0 * step.0, step.1 * step.1, step.2 * step.2)) / 12.0;
+    cov += Matrix3::from_diagonal(&Vector3::new(
+        step.0 * step.0,
+        step.1 * step.1,
+        step.2 * step.2,
+    )) / 12.0;
     Some((Vector3::new(m.x, m.y, wrap_angle(theta_ref + m.z)), cov))
 }

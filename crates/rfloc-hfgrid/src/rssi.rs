@@ -59,14 +59,26 @@ const BLIND_SPOT_EDGES_CM: [(f64, u8); 18] = [
 ];
 
 /// Monotonic table ("ideal RSSI"): the maximal-distance row of seed 002 Table 4.
-const IDEAL_EDGES_CM: [(f64, u8); 8] =
-    [(14.0, 0), (9.8, 1), (9.0, 2), (8.0, 3), (7.0, 4), (6.0, 5), (3.5, 6), (2.8, 7)];
+const IDEAL_EDGES_CM: [(f64, u8); 8] = [
+    (14.0, 0),
+    (9.8, 1),
+    (9.0, 2),
+    (8.0, 3),
+    (7.0, 4),
+    (6.0, 5),
+    (3.5, 6),
+    (2.8, 7),
+];
 
 fn bands_from_edges(edges: &[(f64, u8)]) -> Vec<RssiBand> {
     let mut out = Vec::with_capacity(edges.len());
     for (i, &(hi_cm, rssi)) in edges.iter().enumerate() {
         let lo_cm = edges.get(i + 1).map_or(0.0, |e| e.0);
-        out.push(RssiBand { lo_m: lo_cm / 100.0, hi_m: hi_cm / 100.0, rssi });
+        out.push(RssiBand {
+            lo_m: lo_cm / 100.0,
+            hi_m: hi_cm / 100.0,
+            rssi,
+        });
     }
     out
 }
@@ -82,7 +94,8 @@ pub fn normal_cdf(z: f64) -> f64 {
                 + t * (0.096_784_18
                     + t * (-0.186_288_06
                         + t * (0.278_868_07
-                            + t * (-1.135_203_98 + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77))))))));
+                            + t * (-1.135_203_98
+                                + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77))))))));
     let erfc = t * poly.exp();
     0.5 * if x >= 0.0 { erfc } else { 2.0 - erfc }
 }
@@ -103,7 +116,10 @@ impl RssiModel {
     /// A monotonic relation (no blind spot), 3 mm edge σ.
     #[must_use]
     pub fn seed002_ideal() -> Self {
-        Self { bands: bands_from_edges(&IDEAL_EDGES_CM), ..Self::seed002_blind_spot() }
+        Self {
+            bands: bands_from_edges(&IDEAL_EDGES_CM),
+            ..Self::seed002_blind_spot()
+        }
     }
 
     /// Largest distance at which a tag can be read, m.
@@ -120,10 +136,16 @@ impl RssiModel {
     #[must_use]
     pub fn rssi_for_distance(&self, horizontal_m: f64) -> Option<u8> {
         let d = self.distance(horizontal_m);
-        self.bands.iter().find(|b| d > b.lo_m && d <= b.hi_m).map(|b| b.rssi).or_else(|| {
-            // d == 0 belongs to the closest band.
-            (d == 0.0).then(|| self.bands.iter().find(|b| b.lo_m == 0.0).map(|b| b.rssi)).flatten()
-        })
+        self.bands
+            .iter()
+            .find(|b| d > b.lo_m && d <= b.hi_m)
+            .map(|b| b.rssi)
+            .or_else(|| {
+                // d == 0 belongs to the closest band.
+                (d == 0.0)
+                    .then(|| self.bands.iter().find(|b| b.lo_m == 0.0).map(|b| b.rssi))
+                    .flatten()
+            })
     }
 
     /// Probability that the tag is reported at all at horizontal distance `d`.
@@ -190,9 +212,18 @@ impl LikelihoodTable {
         let n = (reach / step).ceil() as usize + 2;
         #[allow(clippy::cast_precision_loss)]
         let d = |i: usize| i as f64 * step;
-        let value = (0..=MAX_RSSI).map(|r| (0..n).map(|i| m.likelihood(r, d(i))).collect()).collect();
-        let log_miss = (0..n).map(|i| m.miss_likelihood(d(i)).max(P_FLOOR).ln()).collect();
-        Self { step, value, log_miss, reach_m: reach }
+        let value = (0..=MAX_RSSI)
+            .map(|r| (0..n).map(|i| m.likelihood(r, d(i))).collect())
+            .collect();
+        let log_miss = (0..n)
+            .map(|i| m.miss_likelihood(d(i)).max(P_FLOOR).ln())
+            .collect();
+        Self {
+            step,
+            value,
+            log_miss,
+            reach_m: reach,
+        }
     }
 
     fn index(&self, d: f64) -> usize {
@@ -207,7 +238,12 @@ impl LikelihoodTable {
         let mut p = 0.0;
         for (r, w) in weights.iter().enumerate() {
             if *w > 0.0 {
-                p += w * self.value.get(r).and_then(|v| v.get(i)).copied().unwrap_or(0.0);
+                p += w * self
+                    .value
+                    .get(r)
+                    .and_then(|v| v.get(i))
+                    .copied()
+                    .unwrap_or(0.0);
             }
         }
         p.max(P_FLOOR).ln()
@@ -216,13 +252,19 @@ impl LikelihoodTable {
     /// `log_report(weights, d)` tabulated over distance, for repeated evaluation.
     pub fn report_curve(&self, weights: &[f64; 8]) -> Vec<f64> {
         #[allow(clippy::cast_precision_loss)]
-        let curve = (0..self.log_miss.len()).map(|i| self.log_report(weights, i as f64 * self.step)).collect();
+        let curve = (0..self.log_miss.len())
+            .map(|i| self.log_report(weights, i as f64 * self.step))
+            .collect();
         curve
     }
 
     /// Looks up a curve from [`Self::report_curve`] at distance `d`.
     pub fn at(&self, curve: &[f64], d: f64) -> f64 {
-        curve.get(self.index(d)).or_else(|| curve.last()).copied().unwrap_or(0.0)
+        curve
+            .get(self.index(d))
+            .or_else(|| curve.last())
+            .copied()
+            .unwrap_or(0.0)
     }
 
     /// Log-likelihood of a tag not reported.
@@ -239,7 +281,27 @@ mod tests {
     fn blind_spot_table_reproduces_the_seed_emulator() {
         let m = RssiModel::seed002_blind_spot();
         // Distances in cm → RSSI as the emulator's find(r2 > d) / r4(end) gives them.
-        for (cm, r) in [(12.0, 0), (9.5, 1), (8.5, 2), (7.5, 3), (6.5, 4), (5.9, 5), (5.6, 4), (5.4, 3), (5.2, 2), (5.05, 1), (4.8, 0), (4.6, 1), (4.4, 2), (4.25, 3), (4.1, 4), (3.8, 5), (3.0, 6), (1.0, 7), (0.0, 7)] {
+        for (cm, r) in [
+            (12.0, 0),
+            (9.5, 1),
+            (8.5, 2),
+            (7.5, 3),
+            (6.5, 4),
+            (5.9, 5),
+            (5.6, 4),
+            (5.4, 3),
+            (5.2, 2),
+            (5.05, 1),
+            (4.8, 0),
+            (4.6, 1),
+            (4.4, 2),
+            (4.25, 3),
+            (4.1, 4),
+            (3.8, 5),
+            (3.0, 6),
+            (1.0, 7),
+            (0.0, 7),
+        ] {
             assert_eq!(m.rssi_for_distance(cm / 100.0), Some(r), "{cm} cm");
         }
         assert_eq!(m.rssi_for_distance(0.141), None);

@@ -113,7 +113,10 @@ impl GridTracker {
             return Err(TrackerError::NonFinite("start pose or covariance"));
         }
         let sym = (covariance + covariance.transpose()) / 2.0 + Matrix3::identity() * 1e-12;
-        let l = sym.cholesky().ok_or_else(|| TrackerError::Invalid("start covariance not positive definite".into()))?.l();
+        let l = sym
+            .cholesky()
+            .ok_or_else(|| TrackerError::Invalid("start covariance not positive definite".into()))?
+            .l();
         let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
         let particles = (0..config.particles)
             .map(|_| {
@@ -147,7 +150,11 @@ impl GridTracker {
             let dy = delta.y + s_xy * normal(&mut self.rng);
             let dth = delta.theta + s_th * normal(&mut self.rng);
             let (s, co) = p.z.sin_cos();
-            *p = Vector3::new(p.x + co * dx - s * dy, p.y + s * dx + co * dy, wrap_angle(p.z + dth));
+            *p = Vector3::new(
+                p.x + co * dx - s * dy,
+                p.y + s * dx + co * dy,
+                wrap_angle(p.z + dth),
+            );
         }
         Ok(())
     }
@@ -158,7 +165,12 @@ impl GridTracker {
         let (pooled, unknown, _invalid) = pool_reports(&self.grid, readings);
         let n = self.particles.len();
         if pooled.is_empty() {
-            return TrackerUpdate { known_tags: 0, unknown_reports: unknown, effective_sample_size: self.ess(), resampled: false };
+            return TrackerUpdate {
+                known_tags: 0,
+                unknown_reports: unknown,
+                effective_sample_size: self.ess(),
+                resampled: false,
+            };
         }
         let (ax, ay) = self.config.antenna_offset_m;
         let reach = self.table.reach_m;
@@ -188,7 +200,12 @@ impl GridTracker {
         if resampled {
             self.resample();
         }
-        TrackerUpdate { known_tags: pooled.len(), unknown_reports: unknown, effective_sample_size: ess, resampled }
+        TrackerUpdate {
+            known_tags: pooled.len(),
+            unknown_reports: unknown,
+            effective_sample_size: ess,
+            resampled,
+        }
     }
 
     fn weights(&self) -> Vec<f64> {
@@ -255,6 +272,12 @@ impl GridTracker {
     #[must_use]
     pub fn pose_estimate(&self, time: f64) -> PoseEstimate {
         let (pose, covariance) = self.estimate();
-        PoseEstimate { time, pose, covariance, mode: EstimateMode::Fix, source: "hfgrid-tracker".into() }
+        PoseEstimate {
+            time,
+            pose,
+            covariance,
+            mode: EstimateMode::Fix,
+            source: "hfgrid-tracker".into(),
+        }
     }
 }

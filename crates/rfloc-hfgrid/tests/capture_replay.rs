@@ -8,10 +8,14 @@
 //! the stop that was active when its first byte arrived; stops come from
 //! `ev mark stop k heading_deg=…`.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers may panic
+
 use std::path::{Path, PathBuf};
 
 use rfloc_capture::{Capture, RecordKind};
-use rfloc_hfgrid::{InitialPoseConfig, InitialPoseSolver, RssiModel, TagGrid, TagReading, TurnStop};
+use rfloc_hfgrid::{
+    InitialPoseConfig, InitialPoseSolver, RssiModel, TagGrid, TagReading, TurnStop,
+};
 use rfloc_pose::{angle_diff, Pose2};
 
 fn captures_dir() -> PathBuf {
@@ -26,7 +30,11 @@ fn parse_scan_line(line: &str) -> Option<TagReading> {
     }
     let uid = u64::from_str_radix(uid_hex, 16).ok()?;
     let (a, b) = rssi.split_once('/')?;
-    Some(TagReading { uid, rssi_first: a.trim().parse().ok()?, rssi_second: b.trim().parse().ok()? })
+    Some(TagReading {
+        uid,
+        rssi_first: a.trim().parse().ok()?,
+        rssi_second: b.trim().parse().ok()?,
+    })
 }
 
 struct Extracted {
@@ -46,9 +54,15 @@ fn extract(path: &Path) -> Extracted {
         match &rec.kind {
             RecordKind::Event(e) => {
                 if let Some(rest) = e.strip_prefix("mark stop ") {
-                    let deg: f64 = rest.split_once("heading_deg=").and_then(|(_, d)| d.trim().parse().ok()).unwrap();
+                    let deg: f64 = rest
+                        .split_once("heading_deg=")
+                        .and_then(|(_, d)| d.trim().parse().ok())
+                        .unwrap();
                     // The 360° stop repeats the 0° one; keep it (it is a ninth reading at +2π).
-                    stops.push(TurnStop { heading_rad: deg.to_radians(), readings: Vec::new() });
+                    stops.push(TurnStop {
+                        heading_rad: deg.to_radians(),
+                        readings: Vec::new(),
+                    });
                 }
             }
             RecordKind::Rx(bytes) => {
@@ -57,7 +71,9 @@ fn extract(path: &Path) -> Extracted {
                         line_stop = stops.len().checked_sub(1);
                     }
                     if b == b'\n' {
-                        let text = String::from_utf8_lossy(&line).replace("<\\r>", "").replace('\r', "");
+                        let text = String::from_utf8_lossy(&line)
+                            .replace("<\\r>", "")
+                            .replace('\r', "");
                         match (parse_scan_line(&text), line_stop) {
                             (Some(r), Some(k)) => stops[k].readings.push(r),
                             _ => {
@@ -77,7 +93,11 @@ fn extract(path: &Path) -> Extracted {
             RecordKind::Tx(_) => {}
         }
     }
-    Extracted { stops, dropped_lines: dropped, malformed }
+    Extracted {
+        stops,
+        dropped_lines: dropped,
+        malformed,
+    }
 }
 
 fn truth_at_start(path: &Path) -> Pose2 {
@@ -95,7 +115,11 @@ fn reference_captures_give_the_true_start_pose() {
         println!("skipped: {} not present", dir.display());
         return;
     }
-    let solver = InitialPoseSolver::new(TagGrid::seed002_test_field(), RssiModel::seed002_blind_spot(), InitialPoseConfig::default());
+    let solver = InitialPoseSolver::new(
+        TagGrid::seed002_test_field(),
+        RssiModel::seed002_blind_spot(),
+        InitialPoseConfig::default(),
+    );
     let (mut sp, mut sh, mut mp, mut mh) = (0.0, 0.0, 0.0f64, 0.0f64);
     let names = ["h0", "h90", "h180", "h-90"];
     for name in names {
@@ -103,7 +127,11 @@ fn reference_captures_give_the_true_start_pose() {
         let ex = extract(&folder.join("kts.cap"));
         let truth = truth_at_start(&folder.join("truth.csv"));
         assert_eq!(ex.stops.len(), 9, "{name}: stops");
-        assert!(ex.malformed.is_empty(), "{name}: unparsed lines {:?}", ex.malformed);
+        assert!(
+            ex.malformed.is_empty(),
+            "{name}: unparsed lines {:?}",
+            ex.malformed
+        );
         let reads: usize = ex.stops.iter().map(|s| s.readings.len()).sum();
         let est = solver.solve(&ex.stops).unwrap();
         let dp = est.pose.distance(&truth);

@@ -1,6 +1,6 @@
 //! A small seeded world for the integration tests: a unicycle robot driven by noisy velocity
 //! commands and radio beacons observed in range/RSSI and bearing with Gaussian noise.
-#![allow(dead_code)]
+#![allow(dead_code, clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
@@ -17,11 +17,23 @@ pub fn gauss(rng: &mut ChaCha8Rng, sigma: f64) -> f64 {
 
 /// True motion: the commanded (v, ω) plus N(0, σ²) each, integrated with the same midpoint rule
 /// as the filter (so the filter's process model is exact up to its noise).
-pub fn step_truth(p: &Pose2, v: f64, w: f64, dt: f64, sigma_v: f64, sigma_w: f64, rng: &mut ChaCha8Rng) -> Pose2 {
+pub fn step_truth(
+    p: &Pose2,
+    v: f64,
+    w: f64,
+    dt: f64,
+    sigma_v: f64,
+    sigma_w: f64,
+    rng: &mut ChaCha8Rng,
+) -> Pose2 {
     let vt = v + gauss(rng, sigma_v);
     let wt = w + gauss(rng, sigma_w);
     let phi = p.theta + wt * dt / 2.0;
-    Pose2::new(p.x + vt * dt * phi.cos(), p.y + vt * dt * phi.sin(), p.theta + wt * dt)
+    Pose2::new(
+        p.x + vt * dt * phi.cos(),
+        p.y + vt * dt * phi.sin(),
+        p.theta + wt * dt,
+    )
 }
 
 /// Noise-free range and bearing from `p` to `(bx, by)`.
