@@ -24,8 +24,13 @@ pub enum Action {
 
 impl Action {
     /// All actions in index order.
-    pub const ALL: [Action; 5] =
-        [Action::Forward, Action::ArcLeft, Action::ArcRight, Action::RotateLeft, Action::RotateRight];
+    pub const ALL: [Action; 5] = [
+        Action::Forward,
+        Action::ArcLeft,
+        Action::ArcRight,
+        Action::RotateLeft,
+        Action::RotateRight,
+    ];
     /// Number of actions.
     pub const COUNT: usize = 5;
 
@@ -86,7 +91,13 @@ impl ActionTable {
     pub fn seed_table() -> Self {
         let c = |v: f64, omega: f64| MotionCommand { v, omega };
         Self {
-            commands: [c(2.5, 0.0), c(2.5, FRAC_PI_2), c(2.5, -FRAC_PI_2), c(0.25, FRAC_PI_2), c(0.25, -FRAC_PI_2)],
+            commands: [
+                c(2.5, 0.0),
+                c(2.5, FRAC_PI_2),
+                c(2.5, -FRAC_PI_2),
+                c(0.25, FRAC_PI_2),
+                c(0.25, -FRAC_PI_2),
+            ],
             noise_v: 1.0,
             noise_omega: PI / 5.0,
         }
@@ -95,15 +106,29 @@ impl ActionTable {
     /// Nominal command of an action.
     #[must_use]
     pub fn nominal(&self, action: Action) -> MotionCommand {
-        self.commands.get(action.index()).copied().unwrap_or(MotionCommand { v: 0.0, omega: 0.0 })
+        self.commands
+            .get(action.index())
+            .copied()
+            .unwrap_or(MotionCommand { v: 0.0, omega: 0.0 })
     }
 
     /// Nominal command plus uniform noise drawn from `rng`.
     pub fn sample<R: Rng + ?Sized>(&self, action: Action, rng: &mut R) -> MotionCommand {
         let n = self.nominal(action);
-        let ev = if self.noise_v > 0.0 { rng.random_range(-self.noise_v..=self.noise_v) } else { 0.0 };
-        let ew = if self.noise_omega > 0.0 { rng.random_range(-self.noise_omega..=self.noise_omega) } else { 0.0 };
-        MotionCommand { v: n.v + ev, omega: n.omega + ew }
+        let ev = if self.noise_v > 0.0 {
+            rng.random_range(-self.noise_v..=self.noise_v)
+        } else {
+            0.0
+        };
+        let ew = if self.noise_omega > 0.0 {
+            rng.random_range(-self.noise_omega..=self.noise_omega)
+        } else {
+            0.0
+        };
+        MotionCommand {
+            v: n.v + ev,
+            omega: n.omega + ew,
+        }
     }
 }
 
@@ -123,7 +148,11 @@ pub fn integrate(pose: &Pose2, cmd: MotionCommand, dt: f64) -> Pose2 {
         let r = cmd.v / cmd.omega;
         (r * dth.sin(), r * (1.0 - dth.cos()))
     };
-    pose.compose(&Pose2 { x: dx, y: dy, theta: dth })
+    pose.compose(&Pose2 {
+        x: dx,
+        y: dy,
+        theta: dth,
+    })
 }
 
 #[cfg(test)]
@@ -132,11 +161,26 @@ mod tests {
 
     #[test]
     fn integrate_straight_and_quarter_circle() {
-        let p = integrate(&Pose2::new(0.0, 0.0, 0.0), MotionCommand { v: 2.0, omega: 0.0 }, 0.5);
+        let p = integrate(
+            &Pose2::new(0.0, 0.0, 0.0),
+            MotionCommand { v: 2.0, omega: 0.0 },
+            0.5,
+        );
         assert!((p.x - 1.0).abs() < 1e-12 && p.y.abs() < 1e-12);
         // v = π/2, ω = π/2 for 1 s: quarter circle of radius 1 to the left.
-        let p = integrate(&Pose2::new(0.0, 0.0, 0.0), MotionCommand { v: FRAC_PI_2, omega: FRAC_PI_2 }, 1.0);
-        assert!((p.x - 1.0).abs() < 1e-12 && (p.y - 1.0).abs() < 1e-12 && (p.theta - FRAC_PI_2).abs() < 1e-12);
+        let p = integrate(
+            &Pose2::new(0.0, 0.0, 0.0),
+            MotionCommand {
+                v: FRAC_PI_2,
+                omega: FRAC_PI_2,
+            },
+            1.0,
+        );
+        assert!(
+            (p.x - 1.0).abs() < 1e-12
+                && (p.y - 1.0).abs() < 1e-12
+                && (p.theta - FRAC_PI_2).abs() < 1e-12
+        );
     }
 
     #[test]

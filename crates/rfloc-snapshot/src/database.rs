@@ -111,18 +111,33 @@ impl SnapshotDatabase {
     ///
     /// # Errors
     /// [`SnapshotError::LearningData`] when no sample has a tag.
-    pub fn learn(observations: &[Observation], config: &LearnConfig) -> Result<Self, SnapshotError> {
-        let seen: Vec<usize> = observations.iter().enumerate().filter(|(_, o)| !o.snapshot.is_empty()).map(|(i, _)| i).collect();
+    pub fn learn(
+        observations: &[Observation],
+        config: &LearnConfig,
+    ) -> Result<Self, SnapshotError> {
+        let seen: Vec<usize> = observations
+            .iter()
+            .enumerate()
+            .filter(|(_, o)| !o.snapshot.is_empty())
+            .map(|(i, _)| i)
+            .collect();
         if seen.is_empty() {
             return Err(SnapshotError::LearningData("no snapshot with tags".into()));
         }
-        let snaps: Vec<Snapshot> = seen.iter().filter_map(|&i| observations.get(i)).map(|o| o.snapshot.clone()).collect();
+        let snaps: Vec<Snapshot> = seen
+            .iter()
+            .filter_map(|&i| observations.get(i))
+            .map(|o| o.snapshot.clone())
+            .collect();
         let d = DissimilarityMatrix::from_snapshots(&snaps, config.distance);
         let clustering = cluster(&d, &config.clustering);
         let k = clustering.medoids.len();
         let mut members: Vec<Vec<Pose2>> = vec![Vec::new(); k];
         for (local, &c) in clustering.assignment.iter().enumerate() {
-            if let (Some(m), Some(o)) = (members.get_mut(c), seen.get(local).and_then(|&i| observations.get(i))) {
+            if let (Some(m), Some(o)) = (
+                members.get_mut(c),
+                seen.get(local).and_then(|&i| observations.get(i)),
+            ) {
                 m.push(o.pose);
             }
         }
@@ -149,14 +164,21 @@ impl SnapshotDatabase {
         }
         let mut counts = TransitionCounts::new(k + 1);
         for (i, pair) in observations.windows(2).enumerate() {
-            if let (Some(first), Some(from), Some(to)) = (pair.first(), state_of.get(i), state_of.get(i + 1)) {
+            if let (Some(first), Some(from), Some(to)) =
+                (pair.first(), state_of.get(i), state_of.get(i + 1))
+            {
                 if let Some(action) = first.action {
                     counts.record(*from, action, *to)?;
                 }
             }
         }
         let transitions = counts.to_model(&config.prior);
-        tracing::debug!(states = k, samples = observations.len(), loss = clustering.loss, "snapshot database learned");
+        tracing::debug!(
+            states = k,
+            samples = observations.len(),
+            loss = clustering.loss,
+            "snapshot database learned"
+        );
         let mut db = Self {
             format_version: FORMAT_VERSION,
             config: *config,
@@ -186,7 +208,11 @@ impl SnapshotDatabase {
     /// after deserialising or editing `states` by other means).
     pub fn rebuild_lookup(&mut self) {
         let mut tags = TagIndex::default();
-        let mut prototypes: Vec<IndexedSnapshot> = self.states.iter().map(|s| tags.index(&s.prototype)).collect();
+        let mut prototypes: Vec<IndexedSnapshot> = self
+            .states
+            .iter()
+            .map(|s| tags.index(&s.prototype))
+            .collect();
         prototypes.push(IndexedSnapshot::default());
         self.lookup = StateLookup { tags, prototypes };
     }
@@ -197,13 +223,20 @@ impl SnapshotDatabase {
     pub fn distances(&self, snapshot: &Snapshot) -> Vec<f64> {
         if self.lookup.prototypes.len() == self.state_count() {
             let q = self.lookup.tags.index_query(snapshot);
-            return self.lookup.prototypes.iter().map(|p| self.config.distance.between_indexed(&q, p)).collect();
+            return self
+                .lookup
+                .prototypes
+                .iter()
+                .map(|p| self.config.distance.between_indexed(&q, p))
+                .collect();
         }
         let empty = Snapshot::new();
         self.states
             .iter()
             .map(|s| self.config.distance.between(snapshot, &s.prototype))
-            .chain(std::iter::once(self.config.distance.between(snapshot, &empty)))
+            .chain(std::iter::once(
+                self.config.distance.between(snapshot, &empty),
+            ))
             .collect()
     }
 
@@ -212,19 +245,31 @@ impl SnapshotDatabase {
     #[must_use]
     pub fn localise(&self, snapshot: &Snapshot) -> Localisation {
         if snapshot.is_empty() {
-            return Localisation { state: self.no_tags_state(), distance: 0.0 };
+            return Localisation {
+                state: self.no_tags_state(),
+                distance: 0.0,
+            };
         }
         self.distances(snapshot)
             .into_iter()
             .take(self.states.len())
             .enumerate()
-            .fold(Localisation { state: self.no_tags_state(), distance: f64::INFINITY }, |best, (i, d)| {
-                if d < best.distance {
-                    Localisation { state: i, distance: d }
-                } else {
-                    best
-                }
-            })
+            .fold(
+                Localisation {
+                    state: self.no_tags_state(),
+                    distance: f64::INFINITY,
+                },
+                |best, (i, d)| {
+                    if d < best.distance {
+                        Localisation {
+                            state: i,
+                            distance: d,
+                        }
+                    } else {
+                        best
+                    }
+                },
+            )
     }
 
     /// Adds one transition observed later (e.g. during navigation), localising both snapshots,
@@ -232,7 +277,12 @@ impl SnapshotDatabase {
     ///
     /// # Errors
     /// Never in practice (indices come from [`Self::localise`]); kept for out-of-range safety.
-    pub fn record_transition(&mut self, before: &Snapshot, action: Action, after: &Snapshot) -> Result<(usize, usize), SnapshotError> {
+    pub fn record_transition(
+        &mut self,
+        before: &Snapshot,
+        action: Action,
+        after: &Snapshot,
+    ) -> Result<(usize, usize), SnapshotError> {
         let from = self.localise(before).state;
         let to = self.localise(after).state;
         self.counts.record(from, action, to)?;
@@ -250,7 +300,9 @@ fn pose_statistics(poses: &[Pose2]) -> (Pose2, [[f64; 3]; 3]) {
     let nf = n as f64;
     let mx = poses.iter().map(|p| p.x).sum::<f64>() / nf;
     let my = poses.iter().map(|p| p.y).sum::<f64>() / nf;
-    let (s, c) = poses.iter().fold((0.0, 0.0), |(s, c), p| (s + p.theta.sin(), c + p.theta.cos()));
+    let (s, c) = poses.iter().fold((0.0, 0.0), |(s, c), p| {
+        (s + p.theta.sin(), c + p.theta.cos())
+    });
     let mean = Pose2::new(mx, my, s.atan2(c));
     let mut cov = [[0.0; 3]; 3];
     if n > 1 {

@@ -9,7 +9,7 @@ use crate::tag::TagId;
 
 /// Which dissimilarity compares two snapshots. Both return a value in `[0, 1]`, 0 for identical
 /// snapshots and 1 for snapshots with no tag in common; both are symmetric.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case", tag = "kind")]
 pub enum SnapshotDistance {
     /// The seed's localisation score (section 3.3.3 and appendix A `localise`), turned into a
@@ -21,13 +21,8 @@ pub enum SnapshotDistance {
     /// Normalised L1 over the union of tags, a missing tag counting as RSS 0:
     /// `Σ_{A∪B}|a−b| / (ΣA + ΣB)` (Bray–Curtis). This is the L1 analogue of the seed's simulation
     /// code, which compared full tag vectors with zeros for non-detections (`norm(c − ss)`).
+    #[default]
     RssL1,
-}
-
-impl Default for SnapshotDistance {
-    fn default() -> Self {
-        SnapshotDistance::RssL1
-    }
 }
 
 /// Counts gathered by one merge pass over two sorted snapshots.
@@ -89,7 +84,7 @@ fn overlap<K: Ord>(
 }
 
 impl SnapshotDistance {
-    fn from_overlap(self, o: &Overlap) -> f64 {
+    fn score_overlap(self, o: &Overlap) -> f64 {
         if o.len_a == 0 && o.len_b == 0 {
             return 0.0;
         }
@@ -122,17 +117,25 @@ impl SnapshotDistance {
     /// Dissimilarity of two snapshots.
     #[must_use]
     pub fn between(self, a: &Snapshot, b: &Snapshot) -> f64 {
-        self.from_overlap(&overlap(a.iter(), b.iter()))
+        self.score_overlap(&overlap(a.iter(), b.iter()))
     }
 
     pub(crate) fn between_indexed(self, a: &IndexedSnapshot, b: &IndexedSnapshot) -> f64 {
         // Index-based merge (same result as `overlap`, faster on interned IDs).
-        let mut o = Overlap { len_a: a.ids.len(), len_b: b.ids.len(), total_a: a.total, total_b: b.total, ..Overlap::default() };
+        let mut o = Overlap {
+            len_a: a.ids.len(),
+            len_b: b.ids.len(),
+            total_a: a.total,
+            total_b: b.total,
+            ..Overlap::default()
+        };
         let (mut i, mut j) = (0, 0);
         let mut only = 0.0;
         while let (Some(&ka), Some(&kb)) = (a.ids.get(i), b.ids.get(j)) {
             if ka == kb {
-                let d = (a.rss.get(i).copied().unwrap_or(0.0) - b.rss.get(j).copied().unwrap_or(0.0)).abs();
+                let d = (a.rss.get(i).copied().unwrap_or(0.0)
+                    - b.rss.get(j).copied().unwrap_or(0.0))
+                .abs();
                 o.common += 1;
                 o.diff_common += d;
                 i += 1;
@@ -145,10 +148,16 @@ impl SnapshotDistance {
                 j += 1;
             }
         }
-        only += a.rss.get(i..).map_or(0.0, |r| r.iter().map(|x| x.abs()).sum());
-        only += b.rss.get(j..).map_or(0.0, |r| r.iter().map(|x| x.abs()).sum());
+        only += a
+            .rss
+            .get(i..)
+            .map_or(0.0, |r| r.iter().map(|x| x.abs()).sum());
+        only += b
+            .rss
+            .get(j..)
+            .map_or(0.0, |r| r.iter().map(|x| x.abs()).sum());
         o.diff_union = o.diff_common + only;
-        self.from_overlap(&o)
+        self.score_overlap(&o)
     }
 }
 
@@ -231,9 +240,11 @@ impl DissimilarityMatrix {
     pub fn from_snapshots(snapshots: &[Snapshot], distance: SnapshotDistance) -> Self {
         let mut index = TagIndex::default();
         let indexed: Vec<IndexedSnapshot> = snapshots.iter().map(|s| index.index(s)).collect();
-        Self::from_fn(indexed.len(), |i, j| match (indexed.get(i), indexed.get(j)) {
-            (Some(a), Some(b)) => distance.between_indexed(a, b),
-            _ => 1.0,
+        Self::from_fn(indexed.len(), |i, j| {
+            match (indexed.get(i), indexed.get(j)) {
+                (Some(a), Some(b)) => distance.between_indexed(a, b),
+                _ => 1.0,
+            }
         })
     }
 
@@ -262,7 +273,10 @@ impl DissimilarityMatrix {
         if hi >= self.n {
             return f64::INFINITY;
         }
-        self.lower.get(hi * (hi - 1) / 2 + lo).copied().unwrap_or(f64::INFINITY)
+        self.lower
+            .get(hi * (hi - 1) / 2 + lo)
+            .copied()
+            .unwrap_or(f64::INFINITY)
     }
 }
 
@@ -271,7 +285,10 @@ mod tests {
     use super::*;
 
     fn snap(pairs: &[(u8, f64)]) -> Snapshot {
-        pairs.iter().map(|(b, r)| (TagId::new(vec![*b]), *r)).collect()
+        pairs
+            .iter()
+            .map(|(b, r)| (TagId::new(vec![*b]), *r))
+            .collect()
     }
 
     #[test]
@@ -298,7 +315,10 @@ mod tests {
         assert_eq!(d.between(&a, &disjoint), 1.0);
         assert_eq!(d.between(&a, &Snapshot::new()), 1.0);
         assert_eq!(d.between(&Snapshot::new(), &Snapshot::new()), 0.0);
-        assert_eq!(SnapshotDistance::SeedScore { id_weight: 0.6 }.between(&a, &disjoint), 1.0);
+        assert_eq!(
+            SnapshotDistance::SeedScore { id_weight: 0.6 }.between(&a, &disjoint),
+            1.0
+        );
     }
 
     #[test]
@@ -309,7 +329,10 @@ mod tests {
             snap(&[(5, 1000.0)]),
             Snapshot::new(),
         ];
-        for kind in [SnapshotDistance::RssL1, SnapshotDistance::SeedScore { id_weight: 0.6 }] {
+        for kind in [
+            SnapshotDistance::RssL1,
+            SnapshotDistance::SeedScore { id_weight: 0.6 },
+        ] {
             let m = DissimilarityMatrix::from_snapshots(&snaps, kind);
             for i in 0..4 {
                 for j in 0..4 {

@@ -19,10 +19,16 @@ pub enum SnapshotError {
     LearningData(String),
     /// Reading or writing the database file failed.
     #[error("database file {path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     /// The database file is not valid JSON for this format.
     #[error("database file {path} is malformed: {source}")]
-    Format { path: PathBuf, source: serde_json::Error },
+    Format {
+        path: PathBuf,
+        source: serde_json::Error,
+    },
     /// The database was written with a different format version.
     #[error("database format version {found}, expected {expected}")]
     Version { found: u32, expected: u32 },

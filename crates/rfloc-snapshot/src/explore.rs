@@ -67,14 +67,23 @@ impl ExplorationPolicy {
     /// A fresh policy (turn direction left until the first random draw).
     #[must_use]
     pub fn new(config: ExplorationConfig) -> Self {
-        Self { config, steps: 0, turn_left: true, blind_steps: 0 }
+        Self {
+            config,
+            steps: 0,
+            turn_left: true,
+            blind_steps: 0,
+        }
     }
 
     /// Action probabilities for the next step, in [`Action::index`] order.
     #[must_use]
     pub fn probabilities(&self, input: ExplorationInput) -> [f64; 5] {
         let c = &self.config;
-        let ramp = if c.ramp_steps == 0 { 1.0 } else { (self.steps as f64 / c.ramp_steps as f64).min(1.0) };
+        let ramp = if c.ramp_steps == 0 {
+            1.0
+        } else {
+            (self.steps as f64 / c.ramp_steps as f64).min(1.0)
+        };
         let base = (c.rotation_early + (c.rotation_late - c.rotation_early) * ramp).clamp(0.0, 1.0);
         let full = c.full_view_tags.max(1) as f64;
         let scarcity = (1.0 - input.tags_seen as f64 / full).max(0.0);
@@ -84,7 +93,11 @@ impl ExplorationPolicy {
             tw[0] *= 1.0 + c.frontier_bias.max(0.0);
         }
         let tsum: f64 = tw.iter().sum();
-        let t = if tsum > 0.0 { tw.map(|w| (1.0 - p_rot) * w / tsum) } else { [0.0; 3] };
+        let t = if tsum > 0.0 {
+            tw.map(|w| (1.0 - p_rot) * w / tsum)
+        } else {
+            [0.0; 3]
+        };
         let r = if tsum > 0.0 { p_rot / 2.0 } else { 0.5 };
         [t[0], t[1], t[2], r, r]
     }
@@ -128,13 +141,25 @@ mod tests {
     #[test]
     fn rotation_probability_rules() {
         let p = ExplorationPolicy::new(ExplorationConfig::default());
-        let blind = p.probabilities(ExplorationInput { tags_seen: 0, new_tags: 0 });
+        let blind = p.probabilities(ExplorationInput {
+            tags_seen: 0,
+            new_tags: 0,
+        });
         assert!((blind[3] + blind[4] - 1.0).abs() < 1e-12);
-        let many = p.probabilities(ExplorationInput { tags_seen: 40, new_tags: 0 });
+        let many = p.probabilities(ExplorationInput {
+            tags_seen: 40,
+            new_tags: 0,
+        });
         assert!((many[3] + many[4] - 0.1).abs() < 1e-12);
-        let few = p.probabilities(ExplorationInput { tags_seen: 5, new_tags: 0 });
+        let few = p.probabilities(ExplorationInput {
+            tags_seen: 5,
+            new_tags: 0,
+        });
         assert!(few[3] > many[3] && few[3] < blind[3]);
-        let frontier = p.probabilities(ExplorationInput { tags_seen: 40, new_tags: 3 });
+        let frontier = p.probabilities(ExplorationInput {
+            tags_seen: 40,
+            new_tags: 3,
+        });
         assert!(frontier[0] > many[0]);
         for probs in [blind, many, few, frontier] {
             assert!((probs.iter().sum::<f64>() - 1.0).abs() < 1e-12);
@@ -143,14 +168,19 @@ mod tests {
 
     #[test]
     fn rotations_become_more_likely_later_and_steps_are_seeded() {
-        let input = ExplorationInput { tags_seen: 30, new_tags: 0 };
+        let input = ExplorationInput {
+            tags_seen: 30,
+            new_tags: 0,
+        };
         let count_rot = |skip: usize| {
             let mut p = ExplorationPolicy::new(ExplorationConfig::default());
             let mut rng = ChaCha8Rng::seed_from_u64(3);
             for _ in 0..skip {
                 p.step(input, &mut rng);
             }
-            (0..2000).filter(|_| p.step(input, &mut rng).is_rotation()).count()
+            (0..2000)
+                .filter(|_| p.step(input, &mut rng).is_rotation())
+                .count()
         };
         assert!(count_rot(0) < count_rot(1000));
         let run = |seed| {

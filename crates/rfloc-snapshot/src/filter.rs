@@ -29,7 +29,11 @@ pub struct FilterConfig {
 
 impl Default for FilterConfig {
     fn default() -> Self {
-        Self { likelihood_scale: 0.04, mixing: 0.01, estimate_radius: 1.0 }
+        Self {
+            likelihood_scale: 0.04,
+            mixing: 0.01,
+            estimate_radius: 1.0,
+        }
     }
 }
 
@@ -47,7 +51,12 @@ impl StateFilter {
     #[must_use]
     pub fn new(db: &SnapshotDatabase, config: FilterConfig) -> Self {
         let n = db.state_count();
-        Self { config, belief: vec![1.0 / n as f64; n], last_had_tags: false, updates: 0 }
+        Self {
+            config,
+            belief: vec![1.0 / n as f64; n],
+            last_had_tags: false,
+            updates: 0,
+        }
     }
 
     /// Current belief (sums to 1).
@@ -59,7 +68,14 @@ impl StateFilter {
     /// Most probable state (lowest index on ties).
     #[must_use]
     pub fn map_state(&self) -> usize {
-        self.belief.iter().enumerate().fold((0, f64::NEG_INFINITY), |b, (i, p)| if *p > b.1 { (i, *p) } else { b }).0
+        self.belief
+            .iter()
+            .enumerate()
+            .fold(
+                (0, f64::NEG_INFINITY),
+                |b, (i, p)| if *p > b.1 { (i, *p) } else { b },
+            )
+            .0
     }
 
     /// Prediction with the learned transition model of `action`.
@@ -115,31 +131,63 @@ impl StateFilter {
             EstimateMode::Fix
         };
         let Some(anchor) = anchor else {
-            return PoseEstimate { time, pose: Pose2::default(), covariance: Matrix3::identity() * 1e6, mode: EstimateMode::NoFix, source: "snapshot".into() };
+            return PoseEstimate {
+                time,
+                pose: Pose2::default(),
+                covariance: Matrix3::identity() * 1e6,
+                mode: EstimateMode::NoFix,
+                source: "snapshot".into(),
+            };
         };
         let r2 = self.config.estimate_radius.max(0.0).powi(2);
         let used: Vec<(f64, &crate::database::LearnedState)> = self
             .belief
             .iter()
             .zip(&db.states)
-            .filter(|(p, s)| **p > 0.0 && (s.pose.x - anchor.x).powi(2) + (s.pose.y - anchor.y).powi(2) <= r2)
+            .filter(|(p, s)| {
+                **p > 0.0 && (s.pose.x - anchor.x).powi(2) + (s.pose.y - anchor.y).powi(2) <= r2
+            })
             .map(|(p, s)| (*p, s))
             .collect();
         let w: f64 = used.iter().map(|u| u.0).sum();
         if w <= 0.0 {
-            return PoseEstimate { time, pose: anchor, covariance: Matrix3::identity(), mode, source: "snapshot".into() };
+            return PoseEstimate {
+                time,
+                pose: anchor,
+                covariance: Matrix3::identity(),
+                mode,
+                source: "snapshot".into(),
+            };
         }
         let mx = used.iter().map(|(p, s)| p * s.pose.x).sum::<f64>() / w;
         let my = used.iter().map(|(p, s)| p * s.pose.y).sum::<f64>() / w;
-        let (ss, cc) = used.iter().fold((0.0, 0.0), |(a, b), (p, s)| (a + p * s.pose.theta.sin(), b + p * s.pose.theta.cos()));
+        let (ss, cc) = used.iter().fold((0.0, 0.0), |(a, b), (p, s)| {
+            (a + p * s.pose.theta.sin(), b + p * s.pose.theta.cos())
+        });
         let mean = Pose2::new(mx, my, ss.atan2(cc));
         let mut cov = Matrix3::zeros();
         for (p, s) in &used {
-            let e = nalgebra::Vector3::new(s.pose.x - mx, s.pose.y - my, angle_diff(s.pose.theta, mean.theta));
-            let within = Matrix3::from_fn(|r, c| s.covariance.get(r).and_then(|row| row.get(c)).copied().unwrap_or(0.0));
+            let e = nalgebra::Vector3::new(
+                s.pose.x - mx,
+                s.pose.y - my,
+                angle_diff(s.pose.theta, mean.theta),
+            );
+            let within = Matrix3::from_fn(|r, c| {
+                s.covariance
+                    .get(r)
+                    .and_then(|row| row.get(c))
+                    .copied()
+                    .unwrap_or(0.0)
+            });
             cov += (e * e.transpose() + within) * (*p / w);
         }
-        PoseEstimate { time, pose: mean, covariance: cov, mode, source: "snapshot".into() }
+        PoseEstimate {
+            time,
+            pose: mean,
+            covariance: cov,
+            mode,
+            source: "snapshot".into(),
+        }
     }
 }
 

@@ -27,6 +27,8 @@ pub mod filter;
 pub mod navigate;
 pub mod store;
 
-pub use database::{LearnConfig, LearnedState, Localisation, Observation, SnapshotDatabase, FORMAT_VERSION};
+pub use database::{
+    LearnConfig, LearnedState, Localisation, Observation, SnapshotDatabase, FORMAT_VERSION,
+};
 pub use filter::{FilterConfig, StateFilter};
 pub use navigate::{NavCommand, NavReason, Navigator, NavigatorConfig, Plan, PlanConfig};

@@ -39,7 +39,12 @@ pub struct PlanConfig {
 
 impl Default for PlanConfig {
     fn default() -> Self {
-        Self { value_iteration: ValueIterationConfig::default(), goal_reward: 1.0, step_cost: 0.01, no_tags_penalty: 0.5 }
+        Self {
+            value_iteration: ValueIterationConfig::default(),
+            goal_reward: 1.0,
+            step_cost: 0.01,
+            no_tags_penalty: 0.5,
+        }
     }
 }
 
@@ -66,10 +71,18 @@ impl Plan {
     ///
     /// # Errors
     /// Out-of-range goal, or what [`value_iteration`] reports.
-    pub fn solve(model: &TransitionModel, goal: usize, no_tags: Option<usize>, config: &PlanConfig) -> Result<Plan, SnapshotError> {
+    pub fn solve(
+        model: &TransitionModel,
+        goal: usize,
+        no_tags: Option<usize>,
+        config: &PlanConfig,
+    ) -> Result<Plan, SnapshotError> {
         let n = model.states();
         if goal >= n {
-            return Err(SnapshotError::StateOutOfRange { state: goal, states: n });
+            return Err(SnapshotError::StateOutOfRange {
+                state: goal,
+                states: n,
+            });
         }
         let mut model = model.clone();
         model.make_absorbing(goal);
@@ -88,13 +101,33 @@ impl Plan {
         let reward: Vec<Vec<f64>> = (0..n)
             .map(|s| {
                 (0..model.actions())
-                    .map(|a| if s == goal { 0.0 } else { model.row(a, s).map_or(0.0, |row| row.expect(&r_next, sum_r)) })
+                    .map(|a| {
+                        if s == goal {
+                            0.0
+                        } else {
+                            model
+                                .row(a, s)
+                                .map_or(0.0, |row| row.expect(&r_next, sum_r))
+                        }
+                    })
                     .collect()
             })
             .collect();
         let res = value_iteration(&model, &reward, &config.value_iteration)?;
-        let policy = res.policy.iter().map(|&a| Action::from_index(a).unwrap_or(Action::Forward)).collect();
-        Ok(Plan { goal, value: res.value, policy, iterations: res.iterations, discount: config.value_iteration.discount, model, reward })
+        let policy = res
+            .policy
+            .iter()
+            .map(|&a| Action::from_index(a).unwrap_or(Action::Forward))
+            .collect();
+        Ok(Plan {
+            goal,
+            value: res.value,
+            policy,
+            iterations: res.iterations,
+            discount: config.value_iteration.discount,
+            model,
+            reward,
+        })
     }
 
     /// Q-values of all actions in `state`, in [`Action::index`] order.
@@ -127,7 +160,11 @@ pub struct NavigatorConfig {
 
 impl Default for NavigatorConfig {
     fn default() -> Self {
-        Self { window: 12, max_visits: 3, escape_steps: 2 }
+        Self {
+            window: 12,
+            max_visits: 3,
+            escape_steps: 2,
+        }
     }
 }
 
@@ -170,19 +207,33 @@ impl Navigator {
     /// A navigator with empty history.
     #[must_use]
     pub fn new(config: NavigatorConfig) -> Self {
-        Self { config, history: VecDeque::new(), escape_left: 0, explorer: ExplorationPolicy::new(ExplorationConfig::default()) }
+        Self {
+            config,
+            history: VecDeque::new(),
+            escape_left: 0,
+            explorer: ExplorationPolicy::new(ExplorationConfig::default()),
+        }
     }
 
     /// Decides the next action in `state` (from [`SnapshotDatabase::localise`] or the filter's
     /// most probable state). `no_tags` is the no-tags state index, if any.
-    pub fn decide<R: Rng + ?Sized>(&mut self, plan: &Plan, state: usize, no_tags: Option<usize>, rng: &mut R) -> NavCommand {
+    pub fn decide<R: Rng + ?Sized>(
+        &mut self,
+        plan: &Plan,
+        state: usize,
+        no_tags: Option<usize>,
+        rng: &mut R,
+    ) -> NavCommand {
         if state == plan.goal {
             return NavCommand::Arrived;
         }
         if Some(state) == no_tags {
             let action = self.explorer.step(ExplorationInput::default(), rng);
             self.push(state, action);
-            return NavCommand::Act { action, reason: NavReason::TurnAround };
+            return NavCommand::Act {
+                action,
+                reason: NavReason::TurnAround,
+            };
         }
         let visits = self.history.iter().filter(|(s, _)| *s == state).count();
         if visits >= self.config.max_visits && self.escape_left == 0 {
@@ -193,16 +244,36 @@ impl Navigator {
         let ranked = ranked_actions(&q);
         let (action, reason) = if self.escape_left > 0 {
             self.escape_left -= 1;
-            let tried: Vec<Action> = self.history.iter().filter(|(s, _)| *s == state).map(|(_, a)| *a).collect();
+            let tried: Vec<Action> = self
+                .history
+                .iter()
+                .filter(|(s, _)| *s == state)
+                .map(|(_, a)| *a)
+                .collect();
             match ranked.iter().find(|a| !tried.contains(a)) {
                 Some(a) => (*a, NavReason::CycleEscape),
-                None => (self.explorer.step(ExplorationInput { tags_seen: usize::MAX, new_tags: 0 }, rng), NavReason::Explore),
+                None => (
+                    self.explorer.step(
+                        ExplorationInput {
+                            tags_seen: usize::MAX,
+                            new_tags: 0,
+                        },
+                        rng,
+                    ),
+                    NavReason::Explore,
+                ),
             }
         } else {
             let policy = plan.policy.get(state).copied().unwrap_or(Action::Forward);
             match self.history.back() {
-                Some(&(prev_state, prev)) if prev_state != state && prev.opposite() == Some(policy) => {
-                    let alt = ranked.iter().copied().find(|a| *a != policy).unwrap_or(policy);
+                Some(&(prev_state, prev))
+                    if prev_state != state && prev.opposite() == Some(policy) =>
+                {
+                    let alt = ranked
+                        .iter()
+                        .copied()
+                        .find(|a| *a != policy)
+                        .unwrap_or(policy);
                     (alt, NavReason::AvoidReversal)
                 }
                 _ => (policy, NavReason::Policy),

@@ -39,7 +39,10 @@ pub struct AverageConfig {
 
 impl Default for AverageConfig {
     fn default() -> Self {
-        Self { tag_set: AverageTagSet::LargestRead, threshold: 1500.0 }
+        Self {
+            tag_set: AverageTagSet::LargestRead,
+            threshold: 1500.0,
+        }
     }
 }
 
@@ -59,7 +62,9 @@ impl Snapshot {
             if !rss.is_finite() {
                 continue;
             }
-            tags.entry(id).and_modify(|v: &mut f64| *v = v.max(rss)).or_insert(rss);
+            tags.entry(id)
+                .and_modify(|v: &mut f64| *v = v.max(rss))
+                .or_insert(rss);
         }
         Self { tags }
     }
@@ -164,7 +169,10 @@ mod tests {
         let r1 = Snapshot::from_reads([(id(1), 2000.0), (id(2), 3000.0)]);
         let r2 = Snapshot::from_reads([(id(1), 4000.0), (id(2), 1000.0), (id(3), 5000.0)]);
         let r3 = Snapshot::from_reads([(id(3), 3000.0), (id(4), 9000.0)]);
-        let cfg = AverageConfig { tag_set: AverageTagSet::LargestRead, threshold: 1500.0 };
+        let cfg = AverageConfig {
+            tag_set: AverageTagSet::LargestRead,
+            threshold: 1500.0,
+        };
         let avg = Snapshot::average(&[r1.clone(), r2.clone(), r3.clone()], &cfg);
         // reference read is r2 (3 tags): tag 4 is dropped even though its RSS is high
         assert_eq!(avg.rss(&id(1)), Some(3000.0));
@@ -173,7 +181,10 @@ mod tests {
         assert_eq!(avg.rss(&id(4)), None);
         assert_eq!(avg.len(), 3);
 
-        let cfg = AverageConfig { tag_set: AverageTagSet::Presence { min_presence: 0.6 }, threshold: 2500.0 };
+        let cfg = AverageConfig {
+            tag_set: AverageTagSet::Presence { min_presence: 0.6 },
+            threshold: 2500.0,
+        };
         let avg = Snapshot::average(&[r1, r2, r3], &cfg);
         // tags 1,2,3 are in 2 of 3 reads; tag 4 in 1 of 3; tag 2 averages 2000 < 2500
         assert_eq!(avg.rss(&id(1)), Some(3000.0));

@@ -12,11 +12,17 @@ use crate::database::{SnapshotDatabase, FORMAT_VERSION};
 use crate::error::SnapshotError;
 
 fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> SnapshotError + '_ {
-    move |source| SnapshotError::Io { path: path.to_path_buf(), source }
+    move |source| SnapshotError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
 }
 
 fn temp_path(path: &Path) -> PathBuf {
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "database".into());
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "database".into());
     path.with_file_name(format!(".{name}.tmp.{}", std::process::id()))
 }
 
@@ -26,7 +32,10 @@ fn temp_path(path: &Path) -> PathBuf {
 ///
 /// # Errors
 /// The first I/O error, or what `produce` returns.
-pub fn write_atomic(path: &Path, produce: impl FnOnce(&mut File) -> Result<(), SnapshotError>) -> Result<(), SnapshotError> {
+pub fn write_atomic(
+    path: &Path,
+    produce: impl FnOnce(&mut File) -> Result<(), SnapshotError>,
+) -> Result<(), SnapshotError> {
     let tmp = temp_path(path);
     let result = (|| {
         let mut file = File::create(&tmp).map_err(io_err(&tmp))?;
@@ -56,7 +65,10 @@ impl SnapshotDatabase {
     /// # Errors
     /// [`SnapshotError::Io`] or [`SnapshotError::Format`].
     pub fn save(&self, path: &Path) -> Result<(), SnapshotError> {
-        let bytes = serde_json::to_vec(self).map_err(|source| SnapshotError::Format { path: path.to_path_buf(), source })?;
+        let bytes = serde_json::to_vec(self).map_err(|source| SnapshotError::Format {
+            path: path.to_path_buf(),
+            source,
+        })?;
         write_atomic(path, |f| f.write_all(&bytes).map_err(io_err(path)))
     }
 
@@ -68,9 +80,16 @@ impl SnapshotDatabase {
     /// when the transition model does not match the states.
     pub fn load(path: &Path) -> Result<Self, SnapshotError> {
         let bytes = fs::read(path).map_err(io_err(path))?;
-        let mut db: SnapshotDatabase = serde_json::from_slice(&bytes).map_err(|source| SnapshotError::Format { path: path.to_path_buf(), source })?;
+        let mut db: SnapshotDatabase =
+            serde_json::from_slice(&bytes).map_err(|source| SnapshotError::Format {
+                path: path.to_path_buf(),
+                source,
+            })?;
         if db.format_version != FORMAT_VERSION {
-            return Err(SnapshotError::Version { found: db.format_version, expected: FORMAT_VERSION });
+            return Err(SnapshotError::Version {
+                found: db.format_version,
+                expected: FORMAT_VERSION,
+            });
         }
         if db.transitions.states() != db.state_count() || db.counts.states() != db.state_count() {
             return Err(SnapshotError::InvalidModel(format!(

@@ -18,7 +18,10 @@ impl TransitionCounts {
     /// Zero counts for `n` states and the five actions.
     #[must_use]
     pub fn new(n: usize) -> Self {
-        Self { n, counts: vec![vec![Vec::new(); n]; Action::COUNT] }
+        Self {
+            n,
+            counts: vec![vec![Vec::new(); n]; Action::COUNT],
+        }
     }
 
     /// Number of states (including the no-tags state if the caller uses one).
@@ -31,15 +34,27 @@ impl TransitionCounts {
     ///
     /// # Errors
     /// [`SnapshotError::StateOutOfRange`] when a state index is `>= states()`.
-    pub fn record_weighted(&mut self, from: usize, action: Action, to: usize, weight: f64) -> Result<(), SnapshotError> {
+    pub fn record_weighted(
+        &mut self,
+        from: usize,
+        action: Action,
+        to: usize,
+        weight: f64,
+    ) -> Result<(), SnapshotError> {
         if from >= self.n || to >= self.n {
-            return Err(SnapshotError::StateOutOfRange { state: from.max(to), states: self.n });
+            return Err(SnapshotError::StateOutOfRange {
+                state: from.max(to),
+                states: self.n,
+            });
         }
         let row = self
             .counts
             .get_mut(action.index())
             .and_then(|a| a.get_mut(from))
-            .ok_or(SnapshotError::StateOutOfRange { state: from, states: self.n })?;
+            .ok_or(SnapshotError::StateOutOfRange {
+                state: from,
+                states: self.n,
+            })?;
         match row.binary_search_by_key(&to, |e| e.0) {
             Ok(pos) => {
                 if let Some(e) = row.get_mut(pos) {
@@ -62,7 +77,10 @@ impl TransitionCounts {
     /// Count of one transition.
     #[must_use]
     pub fn count(&self, from: usize, action: Action, to: usize) -> f64 {
-        self.row(from, action).iter().find(|e| e.0 == to).map_or(0.0, |e| e.1)
+        self.row(from, action)
+            .iter()
+            .find(|e| e.0 == to)
+            .map_or(0.0, |e| e.1)
     }
 
     /// Total count out of `from` under `action`.
@@ -72,7 +90,10 @@ impl TransitionCounts {
     }
 
     fn row(&self, from: usize, action: Action) -> &[(usize, f64)] {
-        self.counts.get(action.index()).and_then(|a| a.get(from)).map_or(&[], Vec::as_slice)
+        self.counts
+            .get(action.index())
+            .and_then(|a| a.get(from))
+            .map_or(&[], Vec::as_slice)
     }
 
     /// Normalises counts into probabilities with the given prior.
@@ -85,13 +106,21 @@ impl TransitionCounts {
             .map(|a| {
                 (0..n)
                     .map(|s| {
-                        let counts = self.counts.get(a).and_then(|r| r.get(s)).map_or(&[][..], Vec::as_slice);
+                        let counts = self
+                            .counts
+                            .get(a)
+                            .and_then(|r| r.get(s))
+                            .map_or(&[][..], Vec::as_slice);
                         let total: f64 = counts.iter().map(|e| e.1).sum();
                         let z = total + alpha;
                         if z <= 0.0 {
-                            return TransitionRow { entries: vec![(s, 1.0)], uniform: 0.0 };
+                            return TransitionRow {
+                                entries: vec![(s, 1.0)],
+                                uniform: 0.0,
+                            };
                         }
-                        let mut entries: Vec<(usize, f64)> = counts.iter().map(|&(j, c)| (j, c / z)).collect();
+                        let mut entries: Vec<(usize, f64)> =
+                            counts.iter().map(|&(j, c)| (j, c / z)).collect();
                         let self_mass = alpha * beta / z;
                         if self_mass > 0.0 {
                             match entries.binary_search_by_key(&s, |e| e.0) {
@@ -103,7 +132,10 @@ impl TransitionCounts {
                                 Err(p) => entries.insert(p, (s, self_mass)),
                             }
                         }
-                        TransitionRow { entries, uniform: alpha * (1.0 - beta) / z / n as f64 }
+                        TransitionRow {
+                            entries,
+                            uniform: alpha * (1.0 - beta) / z / n as f64,
+                        }
                     })
                     .collect()
             })
@@ -129,7 +161,10 @@ pub struct TransitionPrior {
 
 impl Default for TransitionPrior {
     fn default() -> Self {
-        Self { alpha: 1.0, self_fraction: 0.5 }
+        Self {
+            alpha: 1.0,
+            self_fraction: 0.5,
+        }
     }
 }
 
@@ -146,13 +181,24 @@ impl TransitionRow {
     /// `P(j)`.
     #[must_use]
     pub fn prob(&self, j: usize) -> f64 {
-        self.uniform + self.entries.binary_search_by_key(&j, |e| e.0).ok().and_then(|p| self.entries.get(p)).map_or(0.0, |e| e.1)
+        self.uniform
+            + self
+                .entries
+                .binary_search_by_key(&j, |e| e.0)
+                .ok()
+                .and_then(|p| self.entries.get(p))
+                .map_or(0.0, |e| e.1)
     }
 
     /// `Σ_j P(j)·v[j]`, given `sum_v = Σ_j v[j]`.
     #[must_use]
     pub fn expect(&self, v: &[f64], sum_v: f64) -> f64 {
-        self.uniform * sum_v + self.entries.iter().map(|&(j, p)| p * v.get(j).copied().unwrap_or(0.0)).sum::<f64>()
+        self.uniform * sum_v
+            + self
+                .entries
+                .iter()
+                .map(|&(j, p)| p * v.get(j).copied().unwrap_or(0.0))
+                .sum::<f64>()
     }
 }
 
@@ -175,22 +221,40 @@ impl TransitionModel {
         let mut rows = Vec::with_capacity(p.len());
         for (a, m) in p.iter().enumerate() {
             if m.len() != n {
-                return Err(SnapshotError::InvalidModel(format!("action {a}: {} rows, expected {n}", m.len())));
+                return Err(SnapshotError::InvalidModel(format!(
+                    "action {a}: {} rows, expected {n}",
+                    m.len()
+                )));
             }
             let mut arows = Vec::with_capacity(n);
             for (i, r) in m.iter().enumerate() {
                 if r.len() != n {
-                    return Err(SnapshotError::InvalidModel(format!("action {a} row {i}: {} columns", r.len())));
+                    return Err(SnapshotError::InvalidModel(format!(
+                        "action {a} row {i}: {} columns",
+                        r.len()
+                    )));
                 }
                 if r.iter().any(|x| !x.is_finite() || *x < 0.0) {
-                    return Err(SnapshotError::InvalidModel(format!("action {a} row {i}: negative or non-finite")));
+                    return Err(SnapshotError::InvalidModel(format!(
+                        "action {a} row {i}: negative or non-finite"
+                    )));
                 }
                 let s: f64 = r.iter().sum();
                 if (s - 1.0).abs() > 1e-10 {
-                    return Err(SnapshotError::InvalidModel(format!("action {a} row {i}: sums to {s}")));
+                    return Err(SnapshotError::InvalidModel(format!(
+                        "action {a} row {i}: sums to {s}"
+                    )));
                 }
-                let entries = r.iter().copied().enumerate().filter(|(_, x)| *x != 0.0).collect();
-                arows.push(TransitionRow { entries, uniform: 0.0 });
+                let entries = r
+                    .iter()
+                    .copied()
+                    .enumerate()
+                    .filter(|(_, x)| *x != 0.0)
+                    .collect();
+                arows.push(TransitionRow {
+                    entries,
+                    uniform: 0.0,
+                });
             }
             rows.push(arows);
         }
@@ -228,7 +292,10 @@ impl TransitionModel {
     pub fn make_absorbing(&mut self, state: usize) {
         for a in &mut self.rows {
             if let Some(r) = a.get_mut(state) {
-                *r = TransitionRow { entries: vec![(state, 1.0)], uniform: 0.0 };
+                *r = TransitionRow {
+                    entries: vec![(state, 1.0)],
+                    uniform: 0.0,
+                };
             }
         }
     }
@@ -270,7 +337,10 @@ mod tests {
         c.record(0, Action::Forward, 2).unwrap();
         assert!(c.record(0, Action::Forward, 4).is_err());
         assert_eq!(c.count(0, Action::Forward, 1), 2.0);
-        let m = c.to_model(&TransitionPrior { alpha: 1.0, self_fraction: 0.5 });
+        let m = c.to_model(&TransitionPrior {
+            alpha: 1.0,
+            self_fraction: 0.5,
+        });
         // z = 3 + 1: P(1) = 2/4 + 0.5/4/4, P(0) = 0.5/4 + 0.5/16, P(3) = 0.5/16
         assert!((m.prob(0, 0, 1) - (0.5 + 0.5 / 16.0)).abs() < 1e-15);
         assert!((m.prob(0, 0, 2) - (0.25 + 0.5 / 16.0)).abs() < 1e-15);
@@ -286,7 +356,10 @@ mod tests {
         // unseen row: prior only
         assert!((m.prob(1, 2, 2) - (0.5 + 0.125)).abs() < 1e-15);
         // no prior: unseen rows are self-loops, seen rows are plain frequencies
-        let raw = c.to_model(&TransitionPrior { alpha: 0.0, self_fraction: 0.0 });
+        let raw = c.to_model(&TransitionPrior {
+            alpha: 0.0,
+            self_fraction: 0.0,
+        });
         assert_eq!(raw.prob(0, 0, 1), 2.0 / 3.0);
         assert_eq!(raw.prob(3, 3, 3), 1.0);
     }

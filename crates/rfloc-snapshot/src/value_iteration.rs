@@ -18,7 +18,11 @@ pub struct ValueIterationConfig {
 
 impl Default for ValueIterationConfig {
     fn default() -> Self {
-        Self { discount: 0.95, epsilon: 0.01, max_iter: 1000 }
+        Self {
+            discount: 0.95,
+            epsilon: 0.01,
+            max_iter: 1000,
+        }
     }
 }
 
@@ -57,20 +61,31 @@ pub fn value_iteration(
     let s = model.states();
     let a = model.actions();
     let g = config.discount;
-    if !(g > 0.0 && g <= 1.0) {
-        return Err(SnapshotError::InvalidConfig(format!("discount {g} not in (0, 1]")));
+    if g.is_nan() || g <= 0.0 || g > 1.0 {
+        return Err(SnapshotError::InvalidConfig(format!(
+            "discount {g} not in (0, 1]"
+        )));
     }
-    if !(config.epsilon > 0.0) {
-        return Err(SnapshotError::InvalidConfig(format!("epsilon {} must be > 0", config.epsilon)));
+    if config.epsilon.is_nan() || config.epsilon <= 0.0 {
+        return Err(SnapshotError::InvalidConfig(format!(
+            "epsilon {} must be > 0",
+            config.epsilon
+        )));
     }
     if reward.len() != s || reward.iter().any(|r| r.len() != a) {
-        return Err(SnapshotError::InvalidModel(format!("reward must be {s} states × {a} actions")));
+        return Err(SnapshotError::InvalidModel(format!(
+            "reward must be {s} states × {a} actions"
+        )));
     }
     if a == 0 {
         return Err(SnapshotError::InvalidModel("no actions".into()));
     }
     let mut v = vec![0.0; s];
-    let thresh = if g < 1.0 { config.epsilon * (1.0 - g) / g } else { config.epsilon };
+    let thresh = if g < 1.0 {
+        config.epsilon * (1.0 - g) / g
+    } else {
+        config.epsilon
+    };
     let max_iter = if g < 1.0 {
         let k = 1.0 - column_minima(model).iter().sum::<f64>();
         let (first, _) = bellman(model, reward, g, &v);
@@ -96,22 +111,45 @@ pub fn value_iteration(
             break;
         }
     }
-    Ok(ValueIterationResult { value: v, policy, iterations, max_iter })
+    Ok(ValueIterationResult {
+        value: v,
+        policy,
+        iterations,
+        max_iter,
+    })
 }
 
 /// `Q(s, a) = R(s, a) + γ Σ_j P(j|s,a) V(j)` for all actions of one state.
 #[must_use]
-pub fn q_values(model: &TransitionModel, reward: &[Vec<f64>], discount: f64, value: &[f64], state: usize) -> Vec<f64> {
+pub fn q_values(
+    model: &TransitionModel,
+    reward: &[Vec<f64>],
+    discount: f64,
+    value: &[f64],
+    state: usize,
+) -> Vec<f64> {
     let sum_v: f64 = value.iter().sum();
     (0..model.actions())
         .map(|a| {
-            let r = reward.get(state).and_then(|r| r.get(a)).copied().unwrap_or(0.0);
-            r + discount * model.row(a, state).map_or(0.0, |row| row.expect(value, sum_v))
+            let r = reward
+                .get(state)
+                .and_then(|r| r.get(a))
+                .copied()
+                .unwrap_or(0.0);
+            r + discount
+                * model
+                    .row(a, state)
+                    .map_or(0.0, |row| row.expect(value, sum_v))
         })
         .collect()
 }
 
-fn bellman(model: &TransitionModel, reward: &[Vec<f64>], g: f64, v: &[f64]) -> (Vec<f64>, Vec<usize>) {
+fn bellman(
+    model: &TransitionModel,
+    reward: &[Vec<f64>],
+    g: f64,
+    v: &[f64],
+) -> (Vec<f64>, Vec<usize>) {
     let sum_v: f64 = v.iter().sum();
     let s = model.states();
     let mut nv = Vec::with_capacity(s);
@@ -120,7 +158,8 @@ fn bellman(model: &TransitionModel, reward: &[Vec<f64>], g: f64, v: &[f64]) -> (
         let mut best = f64::NEG_INFINITY;
         let mut arg = 0;
         for a in 0..model.actions() {
-            let q = r.get(a).copied().unwrap_or(0.0) + g * model.row(a, i).map_or(0.0, |row| row.expect(v, sum_v));
+            let q = r.get(a).copied().unwrap_or(0.0)
+                + g * model.row(a, i).map_or(0.0, |row| row.expect(v, sum_v));
             if q > best {
                 best = q;
                 arg = a;
@@ -133,7 +172,9 @@ fn bellman(model: &TransitionModel, reward: &[Vec<f64>], g: f64, v: &[f64]) -> (
 }
 
 fn span_of(it: impl Iterator<Item = f64>) -> f64 {
-    let (lo, hi) = it.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| (lo.min(x), hi.max(x)));
+    let (lo, hi) = it.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+        (lo.min(x), hi.max(x))
+    });
     if lo.is_finite() && hi.is_finite() {
         hi - lo
     } else {
@@ -144,7 +185,9 @@ fn span_of(it: impl Iterator<Item = f64>) -> f64 {
 /// `h[j] = min over all (s, a) of P(j | s, a)`, computed from the sparse rows.
 fn column_minima(model: &TransitionModel) -> Vec<f64> {
     let n = model.states();
-    let rows: Vec<_> = (0..model.actions()).flat_map(|a| (0..n).filter_map(move |s| model.row(a, s))).collect();
+    let rows: Vec<_> = (0..model.actions())
+        .flat_map(|a| (0..n).filter_map(move |s| model.row(a, s)))
+        .collect();
     let mut h = vec![f64::INFINITY; n];
     // Rows that do not list j contribute their uniform part; rows that list j contribute
     // uniform + entry. Count, for every j, in how many rows it is listed.
@@ -166,11 +209,16 @@ fn column_minima(model: &TransitionModel) -> Vec<f64> {
             continue;
         }
         // the smallest-uniform row that does not list j
-        if let Some(row) = by_uniform.iter().find(|r| r.entries.binary_search_by_key(&j, |e| e.0).is_err()) {
+        if let Some(row) = by_uniform
+            .iter()
+            .find(|r| r.entries.binary_search_by_key(&j, |e| e.0).is_err())
+        {
             *hj = hj.min(row.uniform);
         }
     }
-    h.iter().map(|x| if x.is_finite() { *x } else { 0.0 }).collect()
+    h.iter()
+        .map(|x| if x.is_finite() { *x } else { 0.0 })
+        .collect()
 }
 
 #[cfg(test)]
@@ -185,12 +233,29 @@ mod tests {
     #[test]
     fn forest_matches_pymdptoolbox() {
         let p = vec![
-            vec![vec![0.1, 0.9, 0.0], vec![0.1, 0.0, 0.9], vec![0.1, 0.0, 0.9]],
-            vec![vec![1.0, 0.0, 0.0], vec![1.0, 0.0, 0.0], vec![1.0, 0.0, 0.0]],
+            vec![
+                vec![0.1, 0.9, 0.0],
+                vec![0.1, 0.0, 0.9],
+                vec![0.1, 0.0, 0.9],
+            ],
+            vec![
+                vec![1.0, 0.0, 0.0],
+                vec![1.0, 0.0, 0.0],
+                vec![1.0, 0.0, 0.0],
+            ],
         ];
         let r = vec![vec![0.0, 0.0], vec![0.0, 1.0], vec![4.0, 2.0]];
         let m = TransitionModel::from_dense(&p).unwrap();
-        let res = value_iteration(&m, &r, &ValueIterationConfig { discount: 0.96, epsilon: 0.01, max_iter: 1000 }).unwrap();
+        let res = value_iteration(
+            &m,
+            &r,
+            &ValueIterationConfig {
+                discount: 0.96,
+                epsilon: 0.01,
+                max_iter: 1000,
+            },
+        )
+        .unwrap();
         let expected = [5.93215488, 9.38815488, 13.38815488];
         for (v, e) in res.value.iter().zip(expected) {
             assert!((v - e).abs() < 1e-9, "{v} vs {e}");
@@ -202,17 +267,38 @@ mod tests {
 
     #[test]
     fn small_matches_pymdptoolbox() {
-        let p = vec![vec![vec![0.5, 0.5], vec![0.8, 0.2]], vec![vec![0.0, 1.0], vec![0.1, 0.9]]];
+        let p = vec![
+            vec![vec![0.5, 0.5], vec![0.8, 0.2]],
+            vec![vec![0.0, 1.0], vec![0.1, 0.9]],
+        ];
         let r = vec![vec![5.0, 10.0], vec![-1.0, 2.0]];
         let m = TransitionModel::from_dense(&p).unwrap();
-        let res = value_iteration(&m, &r, &ValueIterationConfig { discount: 0.9, epsilon: 0.01, max_iter: 1000 }).unwrap();
+        let res = value_iteration(
+            &m,
+            &r,
+            &ValueIterationConfig {
+                discount: 0.9,
+                epsilon: 0.01,
+                max_iter: 1000,
+            },
+        )
+        .unwrap();
         assert!((res.value[0] - 40.048625392716815).abs() < 1e-11);
         assert!((res.value[1] - 33.65371175967546).abs() < 1e-11);
         assert_eq!(res.policy, vec![1, 0]);
         assert_eq!(res.iterations, 26);
         assert_eq!(res.max_iter, 28);
         // A smaller user cap wins over the computed bound.
-        let capped = value_iteration(&m, &r, &ValueIterationConfig { discount: 0.9, epsilon: 0.01, max_iter: 5 }).unwrap();
+        let capped = value_iteration(
+            &m,
+            &r,
+            &ValueIterationConfig {
+                discount: 0.9,
+                epsilon: 0.01,
+                max_iter: 5,
+            },
+        )
+        .unwrap();
         assert_eq!(capped.iterations, 5);
     }
 
@@ -221,8 +307,32 @@ mod tests {
         let m = TransitionModel::from_dense(&[vec![vec![1.0]]]).unwrap();
         let cfg = ValueIterationConfig::default();
         assert!(value_iteration(&m, &[vec![0.0, 1.0]], &cfg).is_err());
-        assert!(value_iteration(&m, &[vec![0.0]], &ValueIterationConfig { discount: 0.0, ..cfg }).is_err());
-        assert!(value_iteration(&m, &[vec![0.0]], &ValueIterationConfig { epsilon: 0.0, ..cfg }).is_err());
-        assert!(value_iteration(&m, &[vec![1.0]], &ValueIterationConfig { discount: 1.0, ..cfg }).is_ok());
+        assert!(value_iteration(
+            &m,
+            &[vec![0.0]],
+            &ValueIterationConfig {
+                discount: 0.0,
+                ..cfg
+            }
+        )
+        .is_err());
+        assert!(value_iteration(
+            &m,
+            &[vec![0.0]],
+            &ValueIterationConfig {
+                epsilon: 0.0,
+                ..cfg
+            }
+        )
+        .is_err());
+        assert!(value_iteration(
+            &m,
+            &[vec![1.0]],
+            &ValueIterationConfig {
+                discount: 1.0,
+                ..cfg
+            }
+        )
+        .is_ok());
     }
 }

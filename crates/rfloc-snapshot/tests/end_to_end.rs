@@ -3,6 +3,7 @@
 //! localise along a fresh 400-step run with the seed's nearest-state rule and with the
 //! histogram filter. Errors are planar distances between the true pose and the estimate, over
 //! steps with tags visible, after the first 10 steps.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers outside #[test] fns
 
 mod common;
 
@@ -61,17 +62,31 @@ fn run(config: &LearnConfig, learn_steps: usize) -> Errors {
 fn kmedoids_database_localises_along_a_fresh_run() {
     let e = run(&LearnConfig::default(), 800);
     assert!(e.states > 350 && e.states <= 400, "{}", e.states);
-    assert!(e.filter_mean < e.nearest_mean, "the filter must beat nearest-state localisation");
-    assert!(e.filter_mean < 0.45, "filter mean error {:.3} m", e.filter_mean);
+    assert!(
+        e.filter_mean < e.nearest_mean,
+        "the filter must beat nearest-state localisation"
+    );
+    assert!(
+        e.filter_mean < 0.45,
+        "filter mean error {:.3} m",
+        e.filter_mean
+    );
 }
 
 /// Threshold clustering on the same data gives a usable database too.
 #[test]
 fn threshold_database_localises() {
-    let config = LearnConfig { clustering: ClusteringMethod::Threshold { max_distance: 0.25 }, ..LearnConfig::default() };
+    let config = LearnConfig {
+        clustering: ClusteringMethod::Threshold { max_distance: 0.25 },
+        ..LearnConfig::default()
+    };
     let e = run(&config, 800);
     assert!(e.states > 50, "{}", e.states);
-    assert!(e.filter_mean < 0.6, "filter mean error {:.3} m", e.filter_mean);
+    assert!(
+        e.filter_mean < 0.6,
+        "filter mean error {:.3} m",
+        e.filter_mean
+    );
 }
 
 /// The seed's data volume (1625 snapshots, k = n/2 as in section 3.3.2). About 1 s in release,
@@ -82,7 +97,11 @@ fn seed_size_database_localises() {
     let e = run(&LearnConfig::default(), 1625);
     assert!(e.states > 700 && e.states <= 813, "{}", e.states);
     assert!(e.filter_mean < e.nearest_mean);
-    assert!(e.filter_mean < 0.30, "filter mean error {:.3} m", e.filter_mean);
+    assert!(
+        e.filter_mean < 0.30,
+        "filter mean error {:.3} m",
+        e.filter_mean
+    );
 }
 
 /// Denser learning (3000 snapshots, every snapshot its own state).
@@ -90,9 +109,17 @@ fn seed_size_database_localises() {
 #[ignore = "slow in debug builds; run with --release -- --ignored"]
 fn dense_learning_localises_better() {
     let config = LearnConfig {
-        clustering: ClusteringMethod::KMedoids { k: ClusterCount::Fraction(1.0), max_iter: 100, seed: 1 },
+        clustering: ClusteringMethod::KMedoids {
+            k: ClusterCount::Fraction(1.0),
+            max_iter: 100,
+            seed: 1,
+        },
         ..LearnConfig::default()
     };
     let e = run(&config, 3000);
-    assert!(e.filter_mean < 0.2, "filter mean error {:.3} m", e.filter_mean);
+    assert!(
+        e.filter_mean < 0.2,
+        "filter mean error {:.3} m",
+        e.filter_mean
+    );
 }

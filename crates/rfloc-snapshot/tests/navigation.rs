@@ -1,5 +1,6 @@
 //! Planning and limit-cycle avoidance on small learned models whose learned transitions are
 //! wrong in the way that produced the seed's limit cycles (Table 4.9 runs 10 and 17).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers outside #[test] fns
 
 use rand_chacha::rand_core::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -10,11 +11,21 @@ fn model(n: usize, counts: &[(usize, Action, usize, f64)]) -> TransitionModel {
     for &(from, a, to, w) in counts {
         c.record_weighted(from, a, to, w).unwrap();
     }
-    c.to_model(&TransitionPrior { alpha: 0.0, self_fraction: 0.0 })
+    c.to_model(&TransitionPrior {
+        alpha: 0.0,
+        self_fraction: 0.0,
+    })
 }
 
 /// Runs `decide` against a deterministic "true world"; returns the number of steps to arrive.
-fn drive(plan: &Plan, start: usize, no_tags: Option<usize>, world: impl Fn(usize, Action) -> usize, mut decide: impl FnMut(usize) -> NavCommand, limit: usize) -> Option<usize> {
+fn drive(
+    plan: &Plan,
+    start: usize,
+    no_tags: Option<usize>,
+    world: impl Fn(usize, Action) -> usize,
+    mut decide: impl FnMut(usize) -> NavCommand,
+    limit: usize,
+) -> Option<usize> {
     let mut s = start;
     for step in 0..limit {
         match decide(s) {
@@ -51,18 +62,41 @@ fn reversal_cycle_is_broken() {
         (0 | 1, Action::Forward) => 2,
         (s, _) => s,
     };
-    let blind = drive(&plan, 0, Some(3), world, |s| if s == 2 { NavCommand::Arrived } else { NavCommand::Act { action: plan.policy[s], reason: NavReason::Policy } }, 200);
+    let blind = drive(
+        &plan,
+        0,
+        Some(3),
+        world,
+        |s| {
+            if s == 2 {
+                NavCommand::Arrived
+            } else {
+                NavCommand::Act {
+                    action: plan.policy[s],
+                    reason: NavReason::Policy,
+                }
+            }
+        },
+        200,
+    );
     assert_eq!(blind, None, "following the policy alone must cycle");
     let mut nav = Navigator::new(NavigatorConfig::default());
     let mut rng = ChaCha8Rng::seed_from_u64(1);
     let mut reasons = Vec::new();
-    let steps = drive(&plan, 0, Some(3), world, |s| {
-        let c = nav.decide(&plan, s, Some(3), &mut rng);
-        if let NavCommand::Act { reason, .. } = c {
-            reasons.push(reason);
-        }
-        c
-    }, 200);
+    let steps = drive(
+        &plan,
+        0,
+        Some(3),
+        world,
+        |s| {
+            let c = nav.decide(&plan, s, Some(3), &mut rng);
+            if let NavCommand::Act { reason, .. } = c {
+                reasons.push(reason);
+            }
+            c
+        },
+        200,
+    );
     assert_eq!(steps, Some(2));
     assert_eq!(reasons, vec![NavReason::Policy, NavReason::AvoidReversal]);
 }
@@ -87,18 +121,47 @@ fn revisit_cycle_is_escaped() {
         (2, Action::ArcLeft) => 3,
         (s, _) => s,
     };
-    let blind = drive(&plan, 0, Some(4), world, |s| if s == 3 { NavCommand::Arrived } else { NavCommand::Act { action: plan.policy[s], reason: NavReason::Policy } }, 200);
+    let blind = drive(
+        &plan,
+        0,
+        Some(4),
+        world,
+        |s| {
+            if s == 3 {
+                NavCommand::Arrived
+            } else {
+                NavCommand::Act {
+                    action: plan.policy[s],
+                    reason: NavReason::Policy,
+                }
+            }
+        },
+        200,
+    );
     assert_eq!(blind, None);
     let mut nav = Navigator::new(NavigatorConfig::default());
     let mut rng = ChaCha8Rng::seed_from_u64(2);
     let mut escaped = false;
-    let steps = drive(&plan, 0, Some(4), world, |s| {
-        let c = nav.decide(&plan, s, Some(4), &mut rng);
-        if matches!(c, NavCommand::Act { reason: NavReason::CycleEscape | NavReason::Explore, .. }) {
-            escaped = true;
-        }
-        c
-    }, 200);
+    let steps = drive(
+        &plan,
+        0,
+        Some(4),
+        world,
+        |s| {
+            let c = nav.decide(&plan, s, Some(4), &mut rng);
+            if matches!(
+                c,
+                NavCommand::Act {
+                    reason: NavReason::CycleEscape | NavReason::Explore,
+                    ..
+                }
+            ) {
+                escaped = true;
+            }
+            c
+        },
+        200,
+    );
     assert!(escaped);
     let steps = steps.expect("navigator must reach the goal");
     assert!(steps < 40, "{steps} steps");

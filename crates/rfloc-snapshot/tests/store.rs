@@ -1,4 +1,5 @@
 //! Atomic save/load of the learned database.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // test helpers outside #[test] fns
 
 mod common;
 
@@ -17,7 +18,10 @@ fn assert_same(a: &SnapshotDatabase, b: &SnapshotDatabase) {
         match (x, y) {
             (Number(p), Number(q)) => {
                 let (p, q) = (p.as_f64().unwrap(), q.as_f64().unwrap());
-                assert!((p - q).abs() <= 1e-12 * p.abs().max(q.abs()).max(1e-300), "{at}: {p} vs {q}");
+                assert!(
+                    (p - q).abs() <= 1e-12 * p.abs().max(q.abs()).max(1e-300),
+                    "{at}: {p} vs {q}"
+                );
             }
             (Array(p), Array(q)) => {
                 assert_eq!(p.len(), q.len(), "{at}");
@@ -26,7 +30,11 @@ fn assert_same(a: &SnapshotDatabase, b: &SnapshotDatabase) {
                 }
             }
             (Object(p), Object(q)) => {
-                assert_eq!(p.keys().collect::<Vec<_>>(), q.keys().collect::<Vec<_>>(), "{at}");
+                assert_eq!(
+                    p.keys().collect::<Vec<_>>(),
+                    q.keys().collect::<Vec<_>>(),
+                    "{at}"
+                );
                 for (k, u) in p {
                     walk(u, &q[k], &format!("{at}.{k}"));
                 }
@@ -34,7 +42,11 @@ fn assert_same(a: &SnapshotDatabase, b: &SnapshotDatabase) {
             _ => assert_eq!(x, y, "{at}"),
         }
     }
-    walk(&serde_json::to_value(a).unwrap(), &serde_json::to_value(b).unwrap(), "db");
+    walk(
+        &serde_json::to_value(a).unwrap(),
+        &serde_json::to_value(b).unwrap(),
+        "db",
+    );
 }
 
 fn small_db() -> SnapshotDatabase {
@@ -61,7 +73,10 @@ fn save_load_round_trip() {
         assert!((a.distance - b.distance).abs() < 1e-12);
     }
     // no temporary file is left behind
-    let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
     assert_eq!(names.len(), 1, "{names:?}");
 }
 
@@ -75,12 +90,17 @@ fn failed_write_keeps_the_good_file() {
     // a writer that dies half way through the new content
     let err = write_atomic(&path, |f| {
         f.write_all(&good[..good.len() / 2]).unwrap();
-        Err(SnapshotError::InvalidConfig("simulated crash during write".into()))
+        Err(SnapshotError::InvalidConfig(
+            "simulated crash during write".into(),
+        ))
     });
     assert!(err.is_err());
     assert_eq!(std::fs::read(&path).unwrap(), good);
     assert_same(&SnapshotDatabase::load(&path).unwrap(), &db);
-    let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
     assert_eq!(names.len(), 1, "temporary file left: {names:?}");
 }
 
@@ -92,20 +112,31 @@ fn truncated_or_foreign_files_are_typed_errors() {
     db.save(&path).unwrap();
     let bytes = std::fs::read(&path).unwrap();
     std::fs::write(&path, &bytes[..bytes.len() / 3]).unwrap();
-    assert!(matches!(SnapshotDatabase::load(&path), Err(SnapshotError::Format { .. })));
+    assert!(matches!(
+        SnapshotDatabase::load(&path),
+        Err(SnapshotError::Format { .. })
+    ));
     let mut v: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
     v["format_version"] = serde_json::json!(99);
     std::fs::write(&path, serde_json::to_vec(&v).unwrap()).unwrap();
-    assert!(matches!(SnapshotDatabase::load(&path), Err(SnapshotError::Version { found: 99, .. })));
-    assert!(matches!(SnapshotDatabase::load(&dir.path().join("missing.json")), Err(SnapshotError::Io { .. })));
+    assert!(matches!(
+        SnapshotDatabase::load(&path),
+        Err(SnapshotError::Version { found: 99, .. })
+    ));
+    assert!(matches!(
+        SnapshotDatabase::load(&dir.path().join("missing.json")),
+        Err(SnapshotError::Io { .. })
+    ));
 }
 
 #[test]
 fn config_hash_changes_with_config() {
     let a = LearnConfig::default();
-    let b = LearnConfig { distance: SnapshotDistance::SeedScore { id_weight: 0.6 }, ..a };
+    let b = LearnConfig {
+        distance: SnapshotDistance::SeedScore { id_weight: 0.6 },
+        ..a
+    };
     assert_ne!(a.hash(), b.hash());
     assert_eq!(a.hash(), LearnConfig::default().hash());
     assert_eq!(a.hash().len(), 16);
 }
-

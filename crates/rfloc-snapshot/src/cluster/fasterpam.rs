@@ -72,8 +72,14 @@ pub fn init_kmeanspp(d: &DissimilarityMatrix, k: usize, seed: u64) -> Vec<usize>
 }
 
 fn rank_all(d: &DissimilarityMatrix, medoids: &[usize], o: usize) -> (Rank, Rank) {
-    let mut best = Rank { slot: 0, dist: f64::INFINITY };
-    let mut second = Rank { slot: 0, dist: f64::INFINITY };
+    let mut best = Rank {
+        slot: 0,
+        dist: f64::INFINITY,
+    };
+    let mut second = Rank {
+        slot: 0,
+        dist: f64::INFINITY,
+    };
     for (slot, &m) in medoids.iter().enumerate() {
         let dist = d.get(o, m);
         if dist < best.dist {
@@ -87,7 +93,10 @@ fn rank_all(d: &DissimilarityMatrix, medoids: &[usize], o: usize) -> (Rank, Rank
 }
 
 fn second_excluding(d: &DissimilarityMatrix, medoids: &[usize], o: usize, exclude: usize) -> Rank {
-    let mut second = Rank { slot: exclude, dist: f64::INFINITY };
+    let mut second = Rank {
+        slot: exclude,
+        dist: f64::INFINITY,
+    };
     for (slot, &m) in medoids.iter().enumerate() {
         if slot == exclude {
             continue;
@@ -125,7 +134,13 @@ pub fn fasterpam(d: &DissimilarityMatrix, init: Vec<usize>, max_iter: usize) -> 
     }
     let k = medoids.len();
     if n == 0 || k == 0 {
-        return Clustering { medoids, assignment: vec![0; n], loss: 0.0, iterations: 0, swaps: 0 };
+        return Clustering {
+            medoids,
+            assignment: vec![0; n],
+            loss: 0.0,
+            iterations: 0,
+            swaps: 0,
+        };
     }
     let mut is_medoid = vec![false; n];
     for &m in &medoids {
@@ -133,7 +148,8 @@ pub fn fasterpam(d: &DissimilarityMatrix, init: Vec<usize>, max_iter: usize) -> 
             *f = true;
         }
     }
-    let (mut near, mut sec): (Vec<Rank>, Vec<Rank>) = (0..n).map(|o| rank_all(d, &medoids, o)).unzip();
+    let (mut near, mut sec): (Vec<Rank>, Vec<Rank>) =
+        (0..n).map(|o| rank_all(d, &medoids, o)).unzip();
     let mut iterations = 0;
     let mut swaps = 0;
     if k < n {
@@ -150,36 +166,48 @@ pub fn fasterpam(d: &DissimilarityMatrix, init: Vec<usize>, max_iter: usize) -> 
                 if is_medoid.get(xc).copied().unwrap_or(true) {
                     continue;
                 }
-                let (best_slot, total) = if k == 1 {
-                    // Only one medoid: the change is the total deviation difference.
-                    let td: f64 = (0..n).map(|o| d.get(o, xc) - near.get(o).map_or(0.0, |r| r.dist)).sum();
-                    (0, td)
-                } else {
-                    delta.copy_from_slice(&loss_rm);
-                    let mut acc = 0.0;
-                    for o in 0..n {
-                        let (Some(no), Some(so)) = (near.get(o), sec.get(o)) else { continue };
-                        let doj = d.get(o, xc);
-                        if doj < no.dist {
-                            acc += doj - no.dist;
-                            if let Some(x) = delta.get_mut(no.slot) {
-                                *x += no.dist - so.dist;
-                            }
-                        } else if doj < so.dist {
-                            if let Some(x) = delta.get_mut(no.slot) {
-                                *x += doj - so.dist;
+                let (best_slot, total) =
+                    if k == 1 {
+                        // Only one medoid: the change is the total deviation difference.
+                        let td: f64 = (0..n)
+                            .map(|o| d.get(o, xc) - near.get(o).map_or(0.0, |r| r.dist))
+                            .sum();
+                        (0, td)
+                    } else {
+                        delta.copy_from_slice(&loss_rm);
+                        let mut acc = 0.0;
+                        for o in 0..n {
+                            let (Some(no), Some(so)) = (near.get(o), sec.get(o)) else {
+                                continue;
+                            };
+                            let doj = d.get(o, xc);
+                            if doj < no.dist {
+                                acc += doj - no.dist;
+                                if let Some(x) = delta.get_mut(no.slot) {
+                                    *x += no.dist - so.dist;
+                                }
+                            } else if doj < so.dist {
+                                if let Some(x) = delta.get_mut(no.slot) {
+                                    *x += doj - so.dist;
+                                }
                             }
                         }
-                    }
-                    let (slot, best) = delta
-                        .iter()
-                        .copied()
-                        .enumerate()
-                        .fold((0, f64::INFINITY), |b, (i, v)| if v < b.1 { (i, v) } else { b });
-                    (slot, best + acc)
-                };
+                        let (slot, best) = delta.iter().copied().enumerate().fold(
+                            (0, f64::INFINITY),
+                            |b, (i, v)| if v < b.1 { (i, v) } else { b },
+                        );
+                        (slot, best + acc)
+                    };
                 if total < -MIN_GAIN {
-                    apply_swap(d, &mut medoids, &mut is_medoid, &mut near, &mut sec, best_slot, xc);
+                    apply_swap(
+                        d,
+                        &mut medoids,
+                        &mut is_medoid,
+                        &mut near,
+                        &mut sec,
+                        best_slot,
+                        xc,
+                    );
                     loss_rm = removal_loss(&near, &sec, k);
                     swaps += 1;
                     last_swap = Some(xc);
@@ -192,7 +220,13 @@ pub fn fasterpam(d: &DissimilarityMatrix, init: Vec<usize>, max_iter: usize) -> 
     }
     let loss = near.iter().map(|r| r.dist).sum();
     let assignment = near.iter().map(|r| r.slot).collect();
-    Clustering { medoids, assignment, loss, iterations, swaps }
+    Clustering {
+        medoids,
+        assignment,
+        loss,
+        iterations,
+        swaps,
+    }
 }
 
 fn apply_swap(
@@ -272,7 +306,9 @@ mod tests {
         let mut rng = ChaCha8Rng::seed_from_u64(7);
         for trial in 0..20 {
             let n = 12 + trial % 7;
-            let pts: Vec<(f64, f64)> = (0..n).map(|_| (rng.random::<f64>(), rng.random::<f64>())).collect();
+            let pts: Vec<(f64, f64)> = (0..n)
+                .map(|_| (rng.random::<f64>(), rng.random::<f64>()))
+                .collect();
             let d = DissimilarityMatrix::from_fn(n, |i, j| {
                 let (a, b) = (pts[i], pts[j]);
                 ((a.0 - b.0).powi(2) + (a.1 - b.1).powi(2)).sqrt()
@@ -280,7 +316,13 @@ mod tests {
             let k = 2 + trial % 4;
             let c = fasterpam(&d, init_kmeanspp(&d, k, trial as u64), 100);
             let td = |meds: &[usize]| -> f64 {
-                (0..n).map(|o| meds.iter().map(|&m| d.get(o, m)).fold(f64::INFINITY, f64::min)).sum()
+                (0..n)
+                    .map(|o| {
+                        meds.iter()
+                            .map(|&m| d.get(o, m))
+                            .fold(f64::INFINITY, f64::min)
+                    })
+                    .sum()
             };
             assert!((td(&c.medoids) - c.loss).abs() < 1e-9);
             for slot in 0..k {
@@ -290,12 +332,19 @@ mod tests {
                     }
                     let mut m = c.medoids.clone();
                     m[slot] = x;
-                    assert!(td(&m) >= c.loss - 1e-9, "trial {trial}: swap {slot}->{x} improves");
+                    assert!(
+                        td(&m) >= c.loss - 1e-9,
+                        "trial {trial}: swap {slot}->{x} improves"
+                    );
                 }
             }
             for o in 0..n {
                 let a = c.assignment[o];
-                let best = c.medoids.iter().map(|&m| d.get(o, m)).fold(f64::INFINITY, f64::min);
+                let best = c
+                    .medoids
+                    .iter()
+                    .map(|&m| d.get(o, m))
+                    .fold(f64::INFINITY, f64::min);
                 assert_eq!(d.get(o, c.medoids[a]), best);
             }
         }

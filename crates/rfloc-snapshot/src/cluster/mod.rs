@@ -57,7 +57,11 @@ pub enum ClusteringMethod {
 
 impl Default for ClusteringMethod {
     fn default() -> Self {
-        ClusteringMethod::KMedoids { k: ClusterCount::Fraction(0.5), max_iter: 100, seed: 1 }
+        ClusteringMethod::KMedoids {
+            k: ClusterCount::Fraction(0.5),
+            max_iter: 100,
+            seed: 1,
+        }
     }
 }
 
@@ -80,7 +84,12 @@ impl Clustering {
     /// Members of cluster `c`.
     #[must_use]
     pub fn members(&self, c: usize) -> Vec<usize> {
-        self.assignment.iter().enumerate().filter(|(_, a)| **a == c).map(|(i, _)| i).collect()
+        self.assignment
+            .iter()
+            .enumerate()
+            .filter(|(_, a)| **a == c)
+            .map(|(i, _)| i)
+            .collect()
     }
 }
 

@@ -26,7 +26,9 @@ pub fn leader(d: &DissimilarityMatrix, max_distance: f64) -> Clustering {
             *a = Some(c);
         }
         for other in lead + 1..n {
-            if assignment.get(other).copied().flatten().is_none() && d.get(lead, other) <= max_distance {
+            if assignment.get(other).copied().flatten().is_none()
+                && d.get(lead, other) <= max_distance
+            {
                 if let Some(a) = assignment.get_mut(other) {
                     *a = Some(c);
                 }
@@ -42,7 +44,13 @@ pub fn leader(d: &DissimilarityMatrix, max_distance: f64) -> Clustering {
                 .iter()
                 .copied()
                 .map(|m| (m, members.iter().map(|&o| d.get(m, o)).sum::<f64>()))
-                .fold((usize::MAX, f64::INFINITY), |b, (m, s)| if s < b.1 { (m, s) } else { b })
+                .fold((usize::MAX, f64::INFINITY), |b, (m, s)| {
+                    if s < b.1 {
+                        (m, s)
+                    } else {
+                        b
+                    }
+                })
                 .0
         })
         .collect();
@@ -52,5 +60,11 @@ pub fn leader(d: &DissimilarityMatrix, max_distance: f64) -> Clustering {
         .enumerate()
         .map(|(o, &c)| medoids.get(c).map_or(0.0, |&m| d.get(o, m)))
         .sum();
-    Clustering { medoids, assignment, loss, iterations: 1, swaps: 0 }
+    Clustering {
+        medoids,
+        assignment,
+        loss,
+        iterations: 1,
+        swaps: 0,
+    }
 }

@@ -7,7 +7,10 @@ use rand::Rng;
 use rand_chacha::rand_core::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rfloc_pose::Pose2;
-use rfloc_snapshot::{integrate, Action, ActionTable, ExplorationConfig, ExplorationInput, ExplorationPolicy, Observation, Snapshot, TagId};
+use rfloc_snapshot::{
+    integrate, Action, ActionTable, ExplorationConfig, ExplorationInput, ExplorationPolicy,
+    Observation, Snapshot, TagId,
+};
 use std::collections::HashSet;
 
 /// Coefficients of eq. 3.19 (Table 3.2).
@@ -42,9 +45,19 @@ impl World {
     pub fn seed_world(seed: u64, rss_noise: f64) -> Self {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let size = 5.0;
-        let tags: Vec<(f64, f64)> = (0..800).map(|_| (rng.random::<f64>() * size, rng.random::<f64>() * size)).collect();
-        let ids = (0..tags.len()).map(|i| TagId::new(format!("E2009033{i:08X}").into_bytes())).collect();
-        Self { size, tags, ids, threshold: 1000.0, rss_noise }
+        let tags: Vec<(f64, f64)> = (0..800)
+            .map(|_| (rng.random::<f64>() * size, rng.random::<f64>() * size))
+            .collect();
+        let ids = (0..tags.len())
+            .map(|i| TagId::new(format!("E2009033{i:08X}").into_bytes()))
+            .collect();
+        Self {
+            size,
+            tags,
+            ids,
+            threshold: 1000.0,
+            rss_noise,
+        }
     }
 
     pub fn snapshot(&self, pose: &Pose2, rng: &mut ChaCha8Rng) -> Snapshot {
@@ -77,15 +90,29 @@ pub fn explore(world: &World, steps: usize, dt: f64, seed: u64) -> Vec<Observati
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let table = ActionTable::seed_table();
     let mut policy = ExplorationPolicy::new(ExplorationConfig::default());
-    let mut pose = Pose2::new(world.size / 2.0, world.size / 2.0, rng.random::<f64>() * 6.28);
+    let mut pose = Pose2::new(
+        world.size / 2.0,
+        world.size / 2.0,
+        rng.random::<f64>() * std::f64::consts::TAU,
+    );
     let mut known: HashSet<TagId> = HashSet::new();
     let mut out = Vec::with_capacity(steps);
     for _ in 0..steps {
         let snap = world.snapshot(&pose, &mut rng);
         let new_tags = snap.iter().filter(|(id, _)| !known.contains(*id)).count();
         known.extend(snap.iter().map(|(id, _)| id.clone()));
-        let action = policy.step(ExplorationInput { tags_seen: snap.len(), new_tags }, &mut rng);
-        out.push(Observation { snapshot: snap, pose, action: Some(action) });
+        let action = policy.step(
+            ExplorationInput {
+                tags_seen: snap.len(),
+                new_tags,
+            },
+            &mut rng,
+        );
+        out.push(Observation {
+            snapshot: snap,
+            pose,
+            action: Some(action),
+        });
         pose = step(world, &table, pose, action, dt, &mut rng);
     }
     out
@@ -93,12 +120,23 @@ pub fn explore(world: &World, steps: usize, dt: f64, seed: u64) -> Vec<Observati
 
 /// Executes one action with the seed's motion noise; a move that would leave the area becomes
 /// a rotation in place by the same command's angle.
-pub fn step(world: &World, table: &ActionTable, pose: Pose2, action: Action, dt: f64, rng: &mut ChaCha8Rng) -> Pose2 {
+pub fn step(
+    world: &World,
+    table: &ActionTable,
+    pose: Pose2,
+    action: Action,
+    dt: f64,
+    rng: &mut ChaCha8Rng,
+) -> Pose2 {
     let cmd = table.sample(action, rng);
     let next = integrate(&pose, cmd, dt);
     if world.inside(&next) {
         next
     } else {
-        Pose2::new(pose.x, pose.y, pose.theta + if cmd.omega >= 0.0 { 1.0 } else { -1.0 } * std::f64::consts::FRAC_PI_2)
+        Pose2::new(
+            pose.x,
+            pose.y,
+            pose.theta + if cmd.omega >= 0.0 { 1.0 } else { -1.0 } * std::f64::consts::FRAC_PI_2,
+        )
     }
 }
