@@ -295,3 +295,89 @@ impl KtsEmulator {
         out
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::Mutex;
+
+    fn emulator(antenna: Arc<Mutex<(f64, f64)>>, miss: f64) -> KtsEmulator {
+        let a = Arc::clone(&antenna);
+        let mut cfg = EmulatorConfig::new(
+            TagGrid::seed002_test_field(),
+            Arc::new(move || *a.lock().unwrap()),
+        );
+        cfg.miss_probability = miss;
+        cfg.seed = 7;
+        KtsEmulator::new(cfg)
+    }
+
+    #[test]
+    fn table9_layout() {
+        let tags = TagGrid::seed002_test_field().tags();
+        assert_eq!(tags.len(), 9);
+        // Seed 002 Table 9: …AE4 at (0, 0), …ADC at (200, 100) mm, …78D at (200, 200) mm.
+        let find = |s: &str| {
+            tags.iter()
+                .find(|(u, _, _)| u.to_string().ends_with(s))
+                .map(|(_, x, y)| (*x, *y))
+        };
+        assert_eq!(find("AE4"), Some((0.0, 0.0)));
+        let (x, y) = find("ADC").unwrap();
+        assert!((x - 0.2).abs() < 1e-12 && (y - 0.1).abs() < 1e-12);
+        let (x, y) = find("78D").unwrap();
+        assert!((x - 0.2).abs() < 1e-12 && (y - 0.2).abs() < 1e-12);
+    }
+
+    #[test]
+    fn sequential_uids() {
+        let g = TagGrid {
+            origin: (1.0, 2.0),
+            pitch: 0.1,
+            rows: 2,
+            cols: 3,
+            uids: UidScheme::Sequential {
+                base: 0xE004_0150_3A5B_D000,
+            },
+        };
+        let tags = g.tags();
+        assert_eq!(tags.len(), 6);
+        assert_eq!(tags[5].0.to_string(), "E00401503A5BD005");
+        assert!((tags[5].1 - 1.2).abs() < 1e-12 && (tags[5].2 - 2.1).abs() < 1e-12);
+    }
+
+    #[test]
+    fn commands_and_scan_reports() {
+        let antenna = Arc::new(Mutex::new((0.1, 0.2)));
+        let mut emu = emulator(Arc::clone(&antenna), 0.0);
+        assert_eq!(emu.answer("AT"), "OK\r\n");
+        assert_eq!(emu.answer("AT+Nope"), "ERROR\r\n");
+        assert_eq!(emu.answer("AT+Scan=AC,RSSI"), "OK\r\n");
+        assert!(emu.scanning);
+        let report = emu.scan_report();
+        // Over …691 at (100, 200) mm: RSSI 7 there; …BF4, …78D, …785 at 10 cm read 0.
+        assert!(
+            report.contains("SCAN:+UID=E00401503A5BD691,+RSSI=7/"),
+            "{report}"
+        );
+        assert_eq!(report.lines().count(), 4, "{report}");
+        *antenna.lock().unwrap() = (1.0, 1.0);
+        let report = emu.scan_report();
+        assert_eq!(report.matches("SCAN:-UID=").count(), 4, "{report}");
+        assert_eq!(emu.answer("AT+Scan=0"), "OK\r\n");
+        assert!(!emu.scanning);
+        assert_eq!(emu.answer("ATE1"), "OK\r\n");
+        assert_eq!(emu.answer("AT"), "AT\r\nOK\r\n");
+    }
+
+    #[test]
+    fn misses_follow_the_probability() {
+        let antenna = Arc::new(Mutex::new((0.1, 0.2)));
+        let mut emu = emulator(antenna, 0.3);
+        let seen: usize = (0..500)
+            .map(|_| emu.scan_report().matches("SCAN:+UID").count())
+            .sum();
+        let rate = seen as f64 / 2000.0;
+        assert!((rate - 0.7).abs() < 0.05, "seen rate {rate}");
+    }
+}
