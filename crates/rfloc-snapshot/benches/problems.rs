@@ -1,0 +1,80 @@
+//! Benchmark problems shared by the criterion bench, the timing example and `compare.py`
+//! (which rebuilds the same numbers with the same generator).
+#![allow(dead_code, clippy::panic)]
+
+use rfloc_snapshot::{DissimilarityMatrix, TransitionModel};
+
+/// 32-bit linear congruential generator (Numerical Recipes constants), chosen because it is
+/// trivial to reproduce bit for bit in Python.
+pub struct Lcg(u32);
+
+impl Lcg {
+    pub fn new(seed: u32) -> Self {
+        Self(seed)
+    }
+    /// Uniform in [0, 1).
+    pub fn next_f64(&mut self) -> f64 {
+        self.0 = self.0.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+        f64::from(self.0) / 4_294_967_296.0
+    }
+}
+
+/// 1625 points in a 5 m × 5 m × 2 "pose" box, Euclidean dissimilarities.
+pub fn clustering_problem(n: usize) -> DissimilarityMatrix {
+    let mut rng = Lcg::new(12345);
+    let pts: Vec<[f64; 3]> = (0..n)
+        .map(|_| {
+            [
+                5.0 * rng.next_f64(),
+                5.0 * rng.next_f64(),
+                2.0 * rng.next_f64(),
+            ]
+        })
+        .collect();
+    DissimilarityMatrix::from_fn(n, |i, j| {
+        let (a, b) = (pts[i], pts[j]);
+        ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+    })
+}
+
+/// Initial medoids used on both sides: every other object, `k = n / 2`.
+pub fn initial_medoids(n: usize) -> Vec<usize> {
+    (0..n / 2).map(|i| 2 * i).collect()
+}
+
+/// `states × 5` MDP: each (action, state) row has 5 successors `(s + o) mod S` with offsets and
+/// weights from the LCG, normalised; rewards `R[s][a]` uniform in [0, 1); state 0 gets +10.
+pub fn vi_problem(states: usize) -> (Vec<Vec<Vec<f64>>>, Vec<Vec<f64>>) {
+    let mut rng = Lcg::new(777);
+    let mut p = vec![vec![vec![0.0; states]; states]; 5];
+    for pa in p.iter_mut() {
+        for (s, row) in pa.iter_mut().enumerate() {
+            let mut ws = [0.0; 5];
+            let mut js = [0usize; 5];
+            for k in 0..5 {
+                js[k] = (s + (rng.next_f64() * 20.0) as usize) % states;
+                ws[k] = 0.1 + rng.next_f64();
+            }
+            let total: f64 = ws.iter().sum();
+            for k in 0..5 {
+                row[js[k]] += ws[k] / total;
+            }
+        }
+    }
+    let mut r = vec![vec![0.0; 5]; states];
+    for row in r.iter_mut() {
+        for x in row.iter_mut() {
+            *x = rng.next_f64();
+        }
+    }
+    r[0] = vec![10.0; 5];
+    (p, r)
+}
+
+pub fn vi_model(states: usize) -> (TransitionModel, Vec<Vec<f64>>) {
+    let (p, r) = vi_problem(states);
+    (
+        TransitionModel::from_dense(&p).unwrap_or_else(|e| panic!("{e}")),
+        r,
+    )
+}

@@ -1,0 +1,53 @@
+//! Prints timings of the benchmark problems in a form `benches/compare.py` parses:
+//! `name seconds detail`. Run with `cargo run --release --example snapshot_timing`.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+#[path = "../benches/problems.rs"]
+mod problems;
+
+use std::time::Instant;
+
+use rfloc_snapshot::cluster::fasterpam;
+use rfloc_snapshot::{value_iteration, ValueIterationConfig};
+
+fn median_secs(reps: usize, mut f: impl FnMut()) -> f64 {
+    let mut t: Vec<f64> = (0..reps)
+        .map(|_| {
+            let s = Instant::now();
+            f();
+            s.elapsed().as_secs_f64()
+        })
+        .collect();
+    t.sort_by(f64::total_cmp);
+    t[t.len() / 2]
+}
+
+fn main() {
+    let d = problems::clustering_problem(1625);
+    let init = problems::initial_medoids(1625);
+    let c = fasterpam::fasterpam(&d, init.clone(), 100);
+    let t = median_secs(5, || {
+        let _ = fasterpam::fasterpam(&d, init.clone(), 100);
+    });
+    println!(
+        "fasterpam_1625_k812 {t:.6} loss={:.6} swaps={} iterations={}",
+        c.loss, c.swaps, c.iterations
+    );
+
+    let (m, r) = problems::vi_model(1000);
+    let cfg = ValueIterationConfig {
+        discount: 0.95,
+        epsilon: 0.01,
+        max_iter: 1000,
+    };
+    let res = value_iteration(&m, &r, &cfg).unwrap();
+    let t = median_secs(20, || {
+        let _ = value_iteration(&m, &r, &cfg).unwrap();
+    });
+    let vsum: f64 = res.value.iter().sum();
+    let psum: usize = res.policy.iter().sum();
+    println!(
+        "value_iteration_1000x5 {t:.6} iter={} max_iter={} sumV={vsum:.6} sumPolicy={psum}",
+        res.iterations, res.max_iter
+    );
+}
