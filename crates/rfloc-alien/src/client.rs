@@ -517,6 +517,44 @@ fn strip_echo(body: &str, cmd: &str) -> String {
 mod tests {
     use super::*;
 
+    /// A reader that ignores `\x01` and answers interactively (echo, `Alien>` prompts): a
+    /// client in suppressed mode still gets the right values, skipping the stray prompts.
+    #[tokio::test]
+    async fn suppressed_client_tolerates_an_interactive_reader() {
+        use tokio::io::{AsyncReadExt, AsyncWriteExt};
+        let (client_io, mut dev) = tokio::io::duplex(4096);
+        let device = tokio::spawn(async move {
+            let mut buf = [0u8; 256];
+            dev.write_all(b"* Alien *\r\nUsername>\0").await.unwrap();
+            let n = dev.read(&mut buf).await.unwrap();
+            assert_eq!(&buf[..n], b"\x01alien\r\n");
+            dev.write_all(b"Password>\0").await.unwrap();
+            let n = dev.read(&mut buf).await.unwrap();
+            assert_eq!(&buf[..n], b"\x01password\r\n");
+            dev.write_all(b"\r\nAlien>\0").await.unwrap();
+            let n = dev.read(&mut buf).await.unwrap();
+            assert_eq!(&buf[..n], b"\x01get ReaderName\r\n");
+            dev.write_all(b"get ReaderName\r\nReaderName = X\r\n\0\r\nAlien>\0")
+                .await
+                .unwrap();
+            let n = dev.read(&mut buf).await.unwrap();
+            assert_eq!(&buf[..n], b"\x01t\r\n");
+            dev.write_all(b"t\r\n(No Tags)\r\n\0\r\nAlien>\0")
+                .await
+                .unwrap();
+            dev
+        });
+        let clock: SharedClock = rfloc_transport::MonotonicClock::shared();
+        let mut c = AlienClient::connect(client_io, AlienConfig::default(), clock)
+            .await
+            .unwrap();
+        assert_eq!(c.get("ReaderName").await.unwrap(), "X");
+        let snap = c.read_snapshot().await.unwrap();
+        assert!(snap.tags.is_empty() && snap.malformed.is_empty());
+        assert_eq!(c.stats().stray_frames, 1);
+        drop(device.await.unwrap());
+    }
+
     #[test]
     fn echo_is_stripped_once() {
         assert_eq!(strip_echo("t\r\n(No Tags)\r\n", "t"), "(No Tags)\r\n");
