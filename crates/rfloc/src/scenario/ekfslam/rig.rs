@@ -1,0 +1,258 @@
+//! The emulated hardware of one seed 003 trial: a Pioneer emulator and an XBee coordinator
+//! emulator, each serving the master side of its own pseudo-terminal, and the real rfloc
+//! drivers (`AriaClient`, `XBeeClient`) on the slave sides, opened by path through
+//! `rfloc_transport::open` and recorded into the trial folder.
+
+use std::path::Path;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use anyhow::Context;
+use rfloc_aria::{
+    AriaClient, ClientConfig as AriaClientConfig, ConnectFuture, EmulatorConfig, EmulatorHandle,
+    RobotEmulator, WheelSlip,
+};
+use rfloc_capture::Header;
+use rfloc_pose::Pose2;
+use rfloc_sim::{Scenario, SensorSuite};
+use rfloc_stepper::AngleProbe;
+use rfloc_transport::{
+    open, CaptureSink, Clock, LinkConfig, Recorder, SerialLink, SharedClock, Transport,
+};
+use rfloc_xbee::{
+    Address16, Address64, ApiMode, Beacon, ClientConfig as XBeeClientConfig, CoordinatorEmulator,
+    EmulatorConfig as XBeeEmulatorConfig, NdLayout, NdLayoutHint, RssiFn, XBeeClient,
+};
+use tokio::task::JoinHandle;
+use tokio_serial::{SerialPort, SerialStream};
+
+/// The XBee link as the bearing scan uses it.
+pub type XBeeLink = XBeeClient<Recorder<Transport>>;
+
+/// Capture timestamps: the Pioneer emulator's simulated clock (seconds), so captures line up
+/// with the emulator's time rather than with wall time.
+#[derive(Debug, Clone)]
+pub struct EmulatorClock(pub EmulatorHandle);
+
+impl Clock for EmulatorClock {
+    fn now(&self) -> f64 {
+        self.0.state().sim_time
+    }
+}
+
+/// Settings of the rig that are not in the scenario file.
+#[derive(Debug, Clone, Copy)]
+pub struct RigSettings {
+    /// Simulated seconds per wall second.
+    pub time_scale: f64,
+    /// Relative σ of each wheel's ground speed per emulator substep (10 ms); 0 = no slip.
+    pub slip_relative_std: f64,
+    /// Seed of the slip generator.
+    pub slip_seed: u64,
+}
+
+/// Running emulators and connected drivers of one trial.
+pub struct Rig {
+    pub base: AriaClient,
+    xbee: Option<XBeeLink>,
+    pub robot: EmulatorHandle,
+    tasks: Vec<JoinHandle<()>>,
+    /// Slave ends kept open so the masters never see a hang-up.
+    _slaves: Vec<SerialStream>,
+    sinks: Vec<CaptureSink>,
+}
+
+fn pty(baud: u32) -> anyhow::Result<(SerialStream, SerialStream, LinkConfig)> {
+    let (master, slave) = SerialStream::pair().context("creating a pseudo-terminal pair")?;
+    let path = slave.name().context("pseudo-terminal has no name")?;
+    let link = LinkConfig::Serial(SerialLink {
+        path,
+        baud,
+        data_bits: Default::default(),
+        parity: Default::default(),
+        stop_bits: Default::default(),
+        flow_control: Default::default(),
+    });
+    Ok((master, slave, link))
+}
+
+fn sink(
+    dir: &Path,
+    file: &str,
+    device: &str,
+    link: &LinkConfig,
+    clock: SharedClock,
+    note: &str,
+) -> anyhow::Result<CaptureSink> {
+    let mut header = Header::new(device, link.describe());
+    header.notes.push(note.to_string());
+    header
+        .notes
+        .push("timestamps: simulated seconds of the Pioneer emulator".to_string());
+    let path = dir.join(file);
+    CaptureSink::create(&path, &header, clock)
+        .with_context(|| format!("creating capture {}", path.display()))
+}
+
+impl Rig {
+    /// Starts both emulators on ptys and connects the drivers through the pty paths.
+    /// `sensors` feeds the coordinator's RSSI from the robot's true pose and `antenna`'s angle.
+    pub async fn start(
+        scenario: &Scenario,
+        trial: usize,
+        dir: &Path,
+        settings: RigSettings,
+        sensors: Arc<Mutex<SensorSuite>>,
+        antenna: AngleProbe,
+    ) -> anyhow::Result<Rig> {
+        let mut tasks = Vec::new();
+        let mut slaves = Vec::new();
+        let scale = settings.time_scale;
+
+        // Pioneer base.
+        let (master, slave, base_link) = pty(9600)?;
+        let emulator = RobotEmulator::new(EmulatorConfig {
+            time_scale: scale,
+            initial_pose: scenario.start_pose(trial),
+            slip: (settings.slip_relative_std > 0.0).then_some(WheelSlip {
+                seed: settings.slip_seed,
+                relative_std: settings.slip_relative_std,
+            }),
+            noise_seed: scenario.trial_seed(trial),
+            ..EmulatorConfig::default()
+        });
+        let robot = emulator.handle();
+        tasks.push(tokio::spawn(async move {
+            let mut emulator = emulator;
+            if let Err(e) = emulator.serve(master).await {
+                tracing::warn!(error = %e, "robot emulator ended");
+            }
+        }));
+        slaves.push(slave);
+        let clock: SharedClock = Arc::new(EmulatorClock(robot.clone()));
+        let base_sink = sink(
+            dir,
+            "pioneer.cap",
+            "pioneer-aria",
+            &base_link,
+            Arc::clone(&clock),
+            &format!("seed003 trial {trial}: emulated Pioneer on a pty"),
+        )?;
+
+        // XBee coordinator in the reflector.
+        let (master, slave, xbee_link) = pty(115_200)?;
+        let beacons: Vec<Beacon> = scenario
+            .world
+            .beacons
+            .iter()
+            .enumerate()
+            .map(|(i, b)| Beacon {
+                address: Address64(b.address),
+                network_address: Address16(0x1000_u16.wrapping_add(u16::try_from(i).unwrap_or(0))),
+                ni: b.ni.clone(),
+            })
+            .collect();
+        let world = scenario.world.clone();
+        let truth = robot.clone();
+        let rssi: RssiFn = Arc::new(move |index| {
+            let pose = truth.truth();
+            let mut s = sensors.lock().ok()?;
+            s.xbee_rssi(&world, &pose, antenna.get(), index)
+        });
+        let coordinator = CoordinatorEmulator::new(
+            beacons,
+            rssi,
+            XBeeEmulatorConfig {
+                mode: ApiMode::Escaped,
+                nd_layout: NdLayout::ZigbeeOrDigiMesh,
+                append_rssi: true,
+                response_spacing: Duration::from_millis(1),
+                ..XBeeEmulatorConfig::default()
+            },
+        );
+        tasks.push(tokio::spawn(async move {
+            if let Err(e) = coordinator.serve(master).await {
+                tracing::warn!(error = %e, "XBee coordinator emulator ended");
+            }
+        }));
+        slaves.push(slave);
+        let xbee_sink = sink(
+            dir,
+            "xbee.cap",
+            "xbee-api2",
+            &xbee_link,
+            Arc::clone(&clock),
+            &format!("seed003 trial {trial}: emulated XBee coordinator on a pty"),
+        )?;
+
+        // Drivers, opened by path as the daemon opens its devices.
+        let connector_sink = base_sink.clone();
+        let connector_link = base_link.clone();
+        let base = AriaClient::connect(
+            move || -> ConnectFuture<Recorder<Transport>> {
+                let link = connector_link.clone();
+                let sink = connector_sink.clone();
+                Box::pin(async move {
+                    let io = open(&link).await.map_err(std::io::Error::other)?;
+                    Ok(Recorder::new(io, sink))
+                })
+            },
+            AriaClientConfig::default().scaled(scale),
+        )
+        .await
+        .context("connecting to the emulated Pioneer")?;
+        let xio = open(&xbee_link).await.context("opening the XBee pty")?;
+        let xbee = XBeeClient::new(
+            Recorder::new(xio, xbee_sink.clone()),
+            XBeeClientConfig {
+                mode: ApiMode::Escaped,
+                nd_layout: NdLayoutHint::ZigbeeOrDigiMesh,
+                response_timeout: Duration::from_millis(500),
+                discovery_margin: Duration::from_millis(500),
+                ..XBeeClientConfig::default()
+            },
+        );
+        Ok(Rig {
+            base,
+            xbee: Some(xbee),
+            robot,
+            tasks,
+            _slaves: slaves,
+            sinks: vec![base_sink, xbee_sink],
+        })
+    }
+
+    /// The robot's true pose.
+    #[must_use]
+    pub fn truth(&self) -> Pose2 {
+        self.robot.truth()
+    }
+
+    /// Hands the XBee driver over (to the bearing scan); `None` the second time.
+    pub fn take_xbee(&mut self) -> Option<XBeeLink> {
+        self.xbee.take()
+    }
+
+    /// Stops the base, closes the drivers, stops the emulators and flushes the captures.
+    pub async fn shutdown(self) {
+        let Rig {
+            base,
+            xbee,
+            tasks,
+            sinks,
+            ..
+        } = self;
+        if let Err(e) = base.shutdown().await {
+            tracing::warn!(error = %e, "Pioneer client shutdown");
+        }
+        drop(xbee);
+        for t in tasks {
+            t.abort();
+        }
+        for s in sinks {
+            if let Err(e) = s.flush() {
+                tracing::warn!(error = %e, "flushing a capture");
+            }
+        }
+    }
+}

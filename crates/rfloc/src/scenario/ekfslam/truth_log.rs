@@ -1,0 +1,105 @@
+//! Ground truth matched to the odometry samples the driver delivers.
+//!
+//! The Pioneer emulator publishes its state (simulated time, true pose, its own odometry) after
+//! every 100 ms tick. A sample the client decodes from a SIP carries that tick's odometry, but
+//! the trial loop may read the emulator a tick later. [`TruthLog`] keeps the recent states and
+//! finds the tick whose odometry equals the client's (to the SIP's quantisation), so truth and
+//! estimate are compared at the same instant.
+
+use std::collections::VecDeque;
+use std::sync::{Arc, Mutex};
+
+use rfloc_aria::{EmulatorHandle, EmulatorState};
+use rfloc_pose::{angle_diff, Pose2};
+use tokio::task::JoinHandle;
+
+/// States kept (10 s of simulated time at the 100 ms SIP period).
+const KEEP: usize = 100;
+/// Largest odometry difference (m, rad) between a SIP and the emulator state it came from:
+/// P3-DX-SH position units are 1 mm, heading units 2π/4096.
+const MATCH_M: f64 = 0.003;
+const MATCH_RAD: f64 = 0.004;
+
+/// One tick of the emulator.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TruthTick {
+    /// Simulated seconds.
+    pub sim_time: f64,
+    /// True pose.
+    pub truth: Pose2,
+    /// The robot's own odometry at that tick.
+    pub odometry: Pose2,
+}
+
+/// Recent emulator states, filled by a background task.
+pub struct TruthLog {
+    ticks: Arc<Mutex<VecDeque<TruthTick>>>,
+    task: JoinHandle<()>,
+}
+
+fn tick_of(s: &EmulatorState) -> TruthTick {
+    TruthTick {
+        sim_time: s.sim_time,
+        truth: s.truth,
+        odometry: s.odometry,
+    }
+}
+
+impl TruthLog {
+    /// Starts following `robot`.
+    pub fn follow(robot: &EmulatorHandle) -> TruthLog {
+        let ticks = Arc::new(Mutex::new(VecDeque::<TruthTick>::with_capacity(KEEP + 1)));
+        let mut rx = robot.subscribe();
+        let log = Arc::clone(&ticks);
+        let task = tokio::spawn(async move {
+            loop {
+                let s = tick_of(&rx.borrow_and_update());
+                if let Ok(mut q) = log.lock() {
+                    match q.back_mut() {
+                        Some(last) if last.sim_time == s.sim_time => *last = s,
+                        _ => q.push_back(s),
+                    }
+                    while q.len() > KEEP {
+                        q.pop_front();
+                    }
+                }
+                if rx.changed().await.is_err() {
+                    break;
+                }
+            }
+        });
+        TruthLog { ticks, task }
+    }
+
+    /// The newest tick whose odometry matches `odometry` (the pose a SIP reported), else the
+    /// tick with the nearest odometry; `None` before the first state.
+    #[must_use]
+    pub fn at_odometry(&self, odometry: &Pose2) -> Option<TruthTick> {
+        let q = self.ticks.lock().ok()?;
+        let matches = |t: &TruthTick| {
+            t.odometry.distance(odometry) <= MATCH_M
+                && angle_diff(t.odometry.theta, odometry.theta).abs() <= MATCH_RAD
+        };
+        q.iter().rev().find(|t| matches(t)).copied().or_else(|| {
+            q.iter()
+                .min_by(|a, b| {
+                    a.odometry
+                        .distance(odometry)
+                        .total_cmp(&b.odometry.distance(odometry))
+                })
+                .copied()
+        })
+    }
+
+    /// The newest tick.
+    #[must_use]
+    pub fn latest(&self) -> Option<TruthTick> {
+        self.ticks.lock().ok()?.back().copied()
+    }
+}
+
+impl Drop for TruthLog {
+    fn drop(&mut self) {
+        self.task.abort();
+    }
+}
