@@ -7,12 +7,11 @@
 //! `started` header plus the recorded offset, so the output is the same on every run.
 
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use anyhow::Context;
-use rfloc_aria::{AriaClient, ClientConfig};
-use rfloc_capture::Capture;
+use rfloc_aria::{ConversionFactors, FrameDecoder, OdometryTracker, ServerPacket};
+use rfloc_capture::{Capture, RecordKind};
 use rfloc_kts::{KtsClient, KtsConfig, TagEventKind};
 use rfloc_transport::replay::{ReplayMode, Replayer};
 use rfloc_transport::SharedClock;
@@ -91,6 +90,13 @@ pub async fn replay_lines(
         }
     }
     events.sort_by(|a, b| event_time(a).total_cmp(&event_time(b)));
+    // The end of the recording is an event too: pipelines that wait for more input finish here.
+    let end = events.last().map_or(0.0, event_time);
+    events.push(DeviceEvent::Mark {
+        device: "replay".into(),
+        t: end,
+        text: "end".into(),
+    });
 
     let estimator = match (pipeline_name, cfg) {
         (_, Some(c)) => c.estimator.clone(),
@@ -158,27 +164,54 @@ async fn replay_kts(name: &str, cap: Capture) -> anyhow::Result<Vec<DeviceEvent>
     Ok(out)
 }
 
+/// The Pioneer streams SIPs faster than a watch channel can be observed during a fast replay,
+/// so its capture is decoded with the driver's sans-IO core (frame decoder, SIP parser,
+/// odometry tracker) record by record: every SIP gives one odometry event at its recorded time.
+#[allow(clippy::unused_async)]
 async fn replay_aria(name: &str, cap: Capture) -> anyhow::Result<Vec<DeviceEvent>> {
-    let (io, handle) = Replayer::new(cap).mode(ReplayMode::RequestResponse).start();
-    let clock: SharedClock = handle.clock();
-    let config = ClientConfig {
-        clock: Some(Arc::clone(&clock)),
-        reconnect_delay: Duration::from_secs(3600),
-        ..ClientConfig::default()
-    };
-    let client = AriaClient::from_stream(io, config).await?;
-    let mut odom = client.odometry();
+    let mut decoder = FrameDecoder::new();
+    let mut tracker: Option<OdometryTracker> = None;
     let mut out = Vec::new();
-    let mut h = handle.clone();
-    loop {
-        tokio::select! {
-            changed = odom.changed() => {
-                if changed.is_err() { break; }
-                let o = odom.borrow_and_update().clone();
-                out.push(DeviceEvent::Odometry { device: name.to_string(), t: o.time, pose: o.pose, v: o.v, w: o.w });
+    let mut skipped = 0u64;
+    for rec in &cap.records {
+        let RecordKind::Rx(bytes) = &rec.kind else {
+            continue;
+        };
+        decoder.push(bytes);
+        while let Some(frame) = decoder.next_frame() {
+            let Ok(frame) = frame else {
+                skipped += 1;
+                continue;
+            };
+            match ServerPacket::from_frame(frame) {
+                Ok(ServerPacket::Identity(id)) => {
+                    tracker = Some(OdometryTracker::new(ConversionFactors::for_subclass(
+                        &id.subclass,
+                    )));
+                }
+                Ok(ServerPacket::Motor(sip)) => {
+                    let t = tracker
+                        .get_or_insert_with(|| OdometryTracker::new(ConversionFactors::P3DX_SH));
+                    let s = t.update(&sip);
+                    out.push(DeviceEvent::Odometry {
+                        device: name.to_string(),
+                        t: rec.t(),
+                        pose: s.pose,
+                        v: s.v,
+                        w: s.w,
+                    });
+                }
+                Ok(_) => {}
+                Err(_) => skipped += 1,
             }
-            _ = h.finished() => break,
         }
+    }
+    if skipped > 0 || decoder.dropped_bytes() > 0 {
+        tracing::warn!(
+            skipped,
+            dropped = decoder.dropped_bytes(),
+            "pioneer replay skipped damaged packets"
+        );
     }
     Ok(out)
 }

@@ -22,6 +22,9 @@ use crate::devices::MotionSender;
 
 /// Running emulators of one simulation.
 pub struct SimRuntime {
+    /// Cancels the emulators; separate from the daemon's token so that device tasks can still
+    /// stop the robot while shutting down.
+    emulators: CancellationToken,
     base: Option<EmulatorHandle>,
     tasks: Vec<JoinHandle<()>>,
     /// Slave ends kept open so the masters never see a hang-up between daemon reconnects.
@@ -46,8 +49,9 @@ impl SimRuntime {
                 "simulated robot final true pose"
             );
         }
+        self.emulators.cancel();
         for t in self.tasks {
-            t.abort();
+            let _ = tokio::time::timeout(std::time::Duration::from_secs(1), t).await;
         }
     }
 }
@@ -72,7 +76,10 @@ pub async fn start(
     sim: &SimulationConfig,
     stop: CancellationToken,
 ) -> anyhow::Result<SimRuntime> {
+    let _ = stop;
+    let emulators = CancellationToken::new();
     let mut runtime = SimRuntime {
+        emulators: emulators.clone(),
         base: None,
         tasks: Vec::new(),
         _slaves: Vec::new(),
@@ -97,7 +104,7 @@ pub async fn start(
             ..RobotEmulatorConfig::default()
         });
         runtime.base = Some(emulator.handle());
-        let stop = stop.clone();
+        let stop = emulators.clone();
         runtime.tasks.push(tokio::spawn(async move {
             tokio::select! {
                 () = stop.cancelled() => {}
@@ -125,7 +132,7 @@ pub async fn start(
         kcfg.seed = sim.seed;
         kcfg.miss_probability = 0.1;
         let emulator = KtsEmulator::new(kcfg);
-        let stop = stop.clone();
+        let stop = emulators.clone();
         runtime.tasks.push(tokio::spawn(async move {
             tokio::select! {
                 () = stop.cancelled() => {}

@@ -1,0 +1,118 @@
+//! gpsd-style regression test: `rfloc replay` on every session under `tests/captures` must print
+//! exactly the POSE lines stored next to it in `expected-poses.jsonl`. Sessions without a pose
+//! pipeline (a reader on its own) keep their golden output at driver level instead
+//! (`*.golden*` next to the capture, checked by the driver crate's tests).
+//! Set `RFLOC_BLESS=1` to rewrite the expected files after an intended change.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn sessions() -> Vec<PathBuf> {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../tests/captures");
+    let mut dirs: Vec<PathBuf> = std::fs::read_dir(&root)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.is_dir())
+        .collect();
+    dirs.sort();
+    dirs
+}
+
+#[test]
+fn every_capture_replays_to_its_golden_poses() {
+    let bless = std::env::var_os("RFLOC_BLESS").is_some();
+    let mut compared = 0;
+    for dir in sessions() {
+        let expected_path = dir.join("expected-poses.jsonl");
+        let has_driver_golden = std::fs::read_dir(&dir)
+            .unwrap()
+            .any(|e| e.unwrap().file_name().to_string_lossy().contains(".golden"));
+        if !expected_path.exists() && !bless {
+            assert!(
+                has_driver_golden,
+                "{} has neither expected-poses.jsonl nor a driver golden file",
+                dir.display()
+            );
+            continue;
+        }
+        let out = Command::new(env!("CARGO_BIN_EXE_rfloc"))
+            .arg("replay")
+            .arg(&dir)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}: {}",
+            dir.display(),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let got = String::from_utf8(out.stdout).unwrap();
+        if bless {
+            if !got.is_empty() {
+                std::fs::write(&expected_path, &got).unwrap();
+            }
+            continue;
+        }
+        let want = std::fs::read_to_string(&expected_path).unwrap();
+        assert!(!want.is_empty(), "{} is empty", expected_path.display());
+        if got != want {
+            let first = got.lines().zip(want.lines()).position(|(a, b)| a != b);
+            panic!(
+                "{}: replay differs from the golden output (got {} lines, want {}; first difference at line {:?})",
+                dir.display(),
+                got.lines().count(),
+                want.lines().count(),
+                first.map(|i| i + 1)
+            );
+        }
+        compared += 1;
+    }
+    assert!(
+        bless || compared >= 5,
+        "expected the KTS and Pioneer sessions to be compared, got {compared}"
+    );
+}
+
+#[test]
+fn hf_turn_captures_give_the_surveyed_start_pose() {
+    for dir in sessions().into_iter().filter(|d| {
+        d.file_name()
+            .unwrap()
+            .to_string_lossy()
+            .starts_with("kts-seed002-turn")
+    }) {
+        let out = Command::new(env!("CARGO_BIN_EXE_rfloc"))
+            .arg("replay")
+            .arg(&dir)
+            .output()
+            .unwrap();
+        let text = String::from_utf8(out.stdout).unwrap();
+        let last = text
+            .lines()
+            .last()
+            .unwrap_or_else(|| panic!("{}: no pose", dir.display()));
+        let v: serde_json::Value = serde_json::from_str(last).unwrap();
+        let truth = std::fs::read_to_string(dir.join("truth.csv")).unwrap();
+        let row: Vec<f64> = truth
+            .lines()
+            .last()
+            .unwrap()
+            .split(',')
+            .map(|x| x.parse().unwrap())
+            .collect();
+        let err = (v["x"].as_f64().unwrap() - row[1]).hypot(v["y"].as_f64().unwrap() - row[2]);
+        let yaw_err = (v["yaw"].as_f64().unwrap() - row[3] + std::f64::consts::PI)
+            .rem_euclid(std::f64::consts::TAU)
+            - std::f64::consts::PI;
+        // Seed 002 reports 37.5 mm and 23° on its real test; rfloc must do at least as well here.
+        assert!(err < 0.0375, "{}: position error {err:.4} m", dir.display());
+        assert!(
+            yaw_err.abs() < 23f64.to_radians(),
+            "{}: heading error {:.1}°",
+            dir.display(),
+            yaw_err.to_degrees()
+        );
+        assert_eq!(v["mode"], "fix");
+    }
+}
