@@ -1,0 +1,394 @@
+//! One closed-loop run of the emitter-homing system against an emulated Pioneer on a pty.
+//!
+//! Timing: the control loop runs on the emulator's SIPs. SIP number `s` came from emulator tick
+//! `k0 + s − 1`; every `CONTROL_TICKS` ticks the loop reads the sensors at the true pose of
+//! that tick (from [`TruthLog`]), updates the filter and the map and asks the navigator for a
+//! command. The command is sent at the *next* control tick, right after that tick's SIP
+//! arrives, so its landing tick does not depend on how long the computation took: a fixed
+//! actuation latency of one control period (0.2 s simulated) buys reproducible runs. A control
+//! step that is still computing when the next one is due is counted (`late_control_steps`).
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::Context;
+use rfloc_aria::{
+    AriaClient, ClientConfig, EmulatorConfig, EmulatorHandle, RobotEmulator,
+};
+use rfloc_capture::Header;
+use rfloc_emitter::{
+    AntennaRss, Bumpers, NavigatorConfig, NavigatorState, OccupancyGridConfig,
+    ParticleFilterConfig, Point2, ScanBeam,
+};
+use rfloc_pose::Pose2;
+use rfloc_sim::{Point, Scenario, SensorSuite};
+use rfloc_transport::{CaptureSink, Clock, LinkConfig, Recorder, SerialLink, SharedClock};
+use tokio_serial::{SerialPort, SerialStream};
+
+use super::calibration::calibrate;
+use super::homing::{EmitterHoming, HomingConfig};
+use super::truth_log::TruthLog;
+
+/// Emulator ticks (SIP periods of 0.1 s) per control step: 5 Hz control, sensing and filtering.
+pub const CONTROL_TICKS: u64 = 2;
+/// Ticks after the first SIP before the first control step (the loop is set up by then, so
+/// the control schedule never depends on start-up delays).
+pub const SETTLE_TICKS: u64 = 10;
+/// Simulated seconds per emulator tick (the emulator's default SIP period).
+pub const TICK_S: f64 = 0.1;
+/// The robot believing it has arrived for this long without the referee agreeing ends the run.
+pub const ARRIVED_HOLD_S: f64 = 10.0;
+/// Side of the square map centred on the start, metres.
+pub const MAP_SIDE_M: f64 = 12.0;
+
+/// What one run asks for.
+#[derive(Debug, Clone)]
+pub struct RunSpec<'a> {
+    pub scenario: &'a Scenario,
+    pub trial: usize,
+    /// Full system (grid + A*) or the preliminary one.
+    pub use_planner: bool,
+    /// Where the Pioneer link is recorded.
+    pub capture: PathBuf,
+    pub time_scale: f64,
+}
+
+/// What happened in one run. Times are simulated seconds since the first SIP.
+#[derive(Debug, Clone, Default)]
+pub struct RunOutcome {
+    pub truth: Vec<(f64, Pose2)>,
+    /// The robot's own pose (start pose composed with odometry) at each control step.
+    pub pose_estimate: Vec<(f64, Pose2)>,
+    /// First time the true position was within the goal tolerance (the referee's view).
+    pub reached: Option<f64>,
+    /// Distance of the filtered emitter estimate from the emitter, per filter update.
+    pub filtered_errors: Vec<f64>,
+    /// Distance of the raw (unfiltered) estimate from the emitter, per filter update.
+    pub raw_errors: Vec<f64>,
+    pub final_estimate: Option<Point2>,
+    /// The navigator declared arrival at some point.
+    pub robot_arrived: bool,
+    pub end_time: f64,
+    pub plans: u64,
+    pub bumper_steps: u64,
+    pub late_control_steps: u64,
+    pub rejected_rss: u64,
+}
+
+/// The emulator's simulated time as a clock (captures and odometry carry simulated seconds).
+#[derive(Debug)]
+struct EmulatorClock(EmulatorHandle);
+
+impl Clock for EmulatorClock {
+    fn now(&self) -> f64 {
+        self.0.state().sim_time
+    }
+}
+
+fn pty_link() -> anyhow::Result<(SerialStream, SerialStream, LinkConfig)> {
+    let (master, slave) = SerialStream::pair().context("creating a pseudo-terminal pair")?;
+    let path = slave.name().context("pseudo-terminal has no name")?;
+    let link = LinkConfig::Serial(SerialLink {
+        path,
+        baud: 9600,
+        data_bits: Default::default(),
+        parity: Default::default(),
+        stop_bits: Default::default(),
+        flow_control: Default::default(),
+    });
+    Ok((master, slave, link))
+}
+
+fn homing_config(
+    scenario: &Scenario,
+    start: &Pose2,
+    use_planner: bool,
+    seed: u64,
+) -> anyhow::Result<HomingConfig> {
+    let emitter = scenario
+        .world
+        .emitter
+        .context("the scenario's world has no emitter")?;
+    let rss = calibrate(&scenario.emitter_model(), emitter.power_dbm)?;
+    let params = &scenario.spec.params;
+    let filter = ParticleFilterConfig {
+        particle_count: params.particles.unwrap_or(1000),
+        ..ParticleFilterConfig::default()
+    };
+    let resolution = params.grid_cell_m.unwrap_or(0.2);
+    let cells = (MAP_SIDE_M / resolution).round().max(1.0) as usize;
+    let grid = OccupancyGridConfig {
+        resolution_m: resolution,
+        width: cells,
+        height: cells,
+        origin: Point2::new(start.x - MAP_SIDE_M / 2.0, start.y - MAP_SIDE_M / 2.0),
+        ..OccupancyGridConfig::default()
+    };
+    let body = scenario.spec.robot.drive.body_radius;
+    let navigator = NavigatorConfig {
+        use_planner,
+        // The seed's 20 cm are from the front of the robot; the simulated laser sits at the
+        // centre of a round body.
+        obstacle_distance_m: 0.2 + body,
+        ..NavigatorConfig::default()
+    };
+    Ok(HomingConfig {
+        rss,
+        filter,
+        grid,
+        navigator,
+        seed: seed ^ 0x5046_5345_4544, // "PFSEED"
+    })
+}
+
+fn to_antenna_rss(rss: &[Option<f64>; 4]) -> Option<AntennaRss> {
+    // rfloc-sim orders the antennas front, left, back, right.
+    match *rss {
+        [Some(front), Some(left), Some(back), Some(right)] => Some(AntennaRss {
+            front,
+            back,
+            left,
+            right,
+        }),
+        _ => None,
+    }
+}
+
+/// Runs the system once; the robot starts at the scenario's start pose for `trial`.
+///
+/// # Errors
+/// Pty, capture, handshake or configuration failures, or an emulator that stops sending SIPs.
+pub async fn run_system(spec: &RunSpec<'_>) -> anyhow::Result<RunOutcome> {
+    let scenario = spec.scenario;
+    let world = Arc::new(scenario.world.clone());
+    let emitter = world
+        .emitter
+        .context("the scenario's world has no emitter")?
+        .position;
+    let start = scenario.start_pose(spec.trial);
+    let seed = scenario.trial_seed(spec.trial);
+    let radius = scenario.spec.robot.drive.body_radius;
+    let goal = scenario
+        .goal(spec.trial)
+        .zip(scenario.spec.goal.map(|g| g.tolerance_m))
+        .unwrap_or((emitter, 0.5));
+    let time_scale = if spec.time_scale.is_finite() && spec.time_scale > 0.0 {
+        spec.time_scale
+    } else {
+        1.0
+    };
+
+    let (master, slave, link) = pty_link()?;
+    let log = TruthLog::new();
+    let mut emulator = RobotEmulator::new(EmulatorConfig {
+        time_scale,
+        initial_pose: start,
+        // No wheel slip: the emulator draws slip noise on every tick from the moment it starts
+        // serving, and how many ticks pass before the handshake completes depends on wall
+        // time, so seeded slip would still differ between reruns.
+        slip: None,
+        noise_seed: seed,
+        ..EmulatorConfig::default()
+    })
+    .with_motion_hook(log.motion_hook(Arc::clone(&world), radius));
+    let handle = emulator.handle();
+    let emulator_task = tokio::spawn(async move {
+        if let Err(e) = emulator.serve(master).await {
+            tracing::warn!(error = %e, "robot emulator ended");
+        }
+    });
+    let clock: SharedClock = Arc::new(EmulatorClock(handle.clone()));
+
+    let result = drive(
+        spec, &world, start, seed, radius, goal, emitter, &link, &log, &handle, &clock, time_scale,
+    )
+    .await;
+    emulator_task.abort();
+    drop(slave);
+    result
+}
+
+#[allow(clippy::too_many_arguments)]
+async fn drive(
+    spec: &RunSpec<'_>,
+    world: &Arc<rfloc_sim::World>,
+    start: Pose2,
+    seed: u64,
+    radius: f64,
+    goal: (Point, f64),
+    emitter: Point,
+    link: &LinkConfig,
+    log: &TruthLog,
+    handle: &EmulatorHandle,
+    clock: &SharedClock,
+    time_scale: f64,
+) -> anyhow::Result<RunOutcome> {
+    let scenario = spec.scenario;
+    let io = rfloc_transport::open(link)
+        .await
+        .with_context(|| format!("opening {}", link.describe()))?;
+    let mut header = Header::new("pioneer-aria", link.describe());
+    header.notes.push(format!(
+        "simulated Pioneer (rfloc-aria emulator) for {} trial {} ({} system); times are simulated seconds",
+        scenario.spec.name,
+        spec.trial,
+        if spec.use_planner { "full" } else { "preliminary" }
+    ));
+    let sink = CaptureSink::create(&spec.capture, &header, Arc::clone(clock))
+        .with_context(|| format!("creating {}", spec.capture.display()))?;
+    let client = AriaClient::from_stream(
+        Recorder::new(io, sink.clone()),
+        ClientConfig {
+            clock: Some(Arc::clone(clock)),
+            ..ClientConfig::default()
+        }
+        .scaled(time_scale),
+    )
+    .await
+    .context("connecting to the emulated Pioneer")?;
+
+    let mut sensors = SensorSuite::for_trial(scenario, spec.trial);
+    let max_range = sensors.scanner.max_range;
+    let mut homing = EmitterHoming::new(
+        homing_config(scenario, &start, spec.use_planner, seed)?,
+        &start,
+    )?;
+    let mut out = RunOutcome::default();
+    let mut odom = client.odometry();
+    let sip_wait = Duration::from_secs_f64((20.0 * TICK_S / time_scale).max(2.0));
+    let mut first_tick: Option<u64> = None;
+    let mut last_tick = 0u64;
+    let mut next_control = 0u64;
+    let mut pending: Option<(f64, f64)> = None;
+    let mut arrived_since: Option<f64> = None;
+
+    loop {
+        tokio::time::timeout(sip_wait, odom.changed())
+            .await
+            .context("the emulated Pioneer stopped sending SIPs")?
+            .context("the Pioneer client stopped")?;
+        let sample = *odom.borrow_and_update();
+        if sample.seq == 0 {
+            continue;
+        }
+        let k0 = match first_tick {
+            Some(k) => k,
+            None => {
+                // Any state pairs a tick count with the number of SIPs sent by then.
+                let st = handle.state();
+                let tick = (st.sim_time / TICK_S).round() as u64;
+                let k = (tick + 1).saturating_sub(st.sips_sent);
+                first_tick = Some(k);
+                last_tick = k.saturating_sub(1);
+                next_control = k + SETTLE_TICKS;
+                k
+            }
+        };
+        let tick = k0 + sample.seq - 1;
+        let since = |k: u64| (k - k0) as f64 * TICK_S;
+        // The referee: true pose of every tick, goal check.
+        for k in (last_tick + 1)..=tick {
+            if let Some(p) = log.after_tick(k) {
+                let t = since(k);
+                out.truth.push((t, p));
+                if out.reached.is_none() && Point::new(p.x, p.y).distance(&goal.0) <= goal.1 {
+                    out.reached = Some(t);
+                }
+            }
+        }
+        last_tick = tick;
+        let t = since(tick);
+        out.end_time = t;
+        if out.reached.is_some() || t >= scenario.spec.duration_s {
+            break;
+        }
+        if tick < next_control {
+            continue;
+        }
+        if tick > next_control {
+            out.late_control_steps += 1;
+        }
+        // Stay on the schedule of the first SIP, whatever the wall-clock delays.
+        while next_control <= tick {
+            next_control += CONTROL_TICKS;
+        }
+        // The command of the previous control step, sent right after this tick's SIP.
+        if let Some((v, w)) = pending.take() {
+            client
+                .set_velocity(v, w)
+                .await
+                .context("sending VEL/RVEL")?;
+        }
+        let t0 = std::time::Instant::now();
+        let truth = log
+            .after_tick(tick)
+            .context("no true pose logged for the current tick")?;
+        let pose = start.compose(&sample.pose);
+        out.pose_estimate.push((t, pose));
+        // 915 MHz receivers and laser: in-process models at the true pose (no wire protocol).
+        if let Some(rss) = to_antenna_rss(&sensors.emitter_rss(world, &truth)) {
+            if let Some(est) = homing.observe_rss(t, &pose, &rss) {
+                let e = Point::new(est.mean.x, est.mean.y).distance(&emitter);
+                let r = Point::new(est.raw.x, est.raw.y).distance(&emitter);
+                out.filtered_errors.push(e);
+                out.raw_errors.push(r);
+                out.final_estimate = Some(est.mean);
+            }
+        }
+        let beams: Vec<ScanBeam> = sensors
+            .laser_scan(world, &truth)
+            .into_iter()
+            .map(|b| ScanBeam {
+                angle_rad: b.angle,
+                range_m: if b.hit { b.range } else { max_range },
+                max_range_m: max_range,
+            })
+            .collect();
+        homing.observe_scan(&pose, beams);
+        let contact = sensors.bumpers(world, &truth, radius);
+        let bumpers = Bumpers {
+            front: contact.front,
+            rear: contact.rear,
+        };
+        if bumpers.front || bumpers.rear {
+            out.bumper_steps += 1;
+        }
+        let cmd = homing.command(t, pose, bumpers);
+        if cmd.state == NavigatorState::Arrived {
+            out.robot_arrived = true;
+            let since_arrival = *arrived_since.get_or_insert(t);
+            if t - since_arrival >= ARRIVED_HOLD_S {
+                break;
+            }
+        } else {
+            arrived_since = None;
+        }
+        pending = Some((cmd.v_mps, cmd.omega_rps));
+        if std::env::var_os("RFLOC_EMITTER_TIMING").is_some() {
+            eprintln!("tick {tick} late {} compute {:?} replanned {}", out.late_control_steps, t0.elapsed(), cmd.replanned);
+        }
+    }
+    out.plans = homing.plan_count();
+    out.rejected_rss = homing.rejected_rss();
+    let _ = client.set_velocity(0.0, 0.0).await;
+    client
+        .shutdown()
+        .await
+        .context("closing the Pioneer link")?;
+    sink.flush()
+        .with_context(|| format!("flushing {}", spec.capture.display()))?;
+    Ok(out)
+}
+
+/// Capture file of a run inside the trial folder.
+#[must_use]
+pub fn capture_path(dir: &Path, primary: bool, use_planner: bool) -> PathBuf {
+    if primary {
+        dir.join("pioneer.cap")
+    } else if use_planner {
+        dir.join("pioneer-full.cap")
+    } else {
+        dir.join("pioneer-preliminary.cap")
+    }
+}
