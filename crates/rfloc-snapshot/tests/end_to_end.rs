@@ -89,10 +89,9 @@ fn threshold_database_localises() {
     );
 }
 
-/// The seed's data volume (1625 snapshots, k = n/2 as in section 3.3.2). About 1 s in release,
-/// ~15 s in debug: `cargo test --release -p rfloc-snapshot --test end_to_end -- --ignored --nocapture`.
+/// The seed's data volume (1625 snapshots, k = n/2 as in section 3.3.2). About 1 s with the
+/// workspace's dev-profile optimisation of this crate.
 #[test]
-#[ignore = "slow in debug builds; run with --release -- --ignored"]
 fn seed_size_database_localises() {
     let e = run(&LearnConfig::default(), 1625);
     assert!(e.states > 700 && e.states <= 813, "{}", e.states);
@@ -104,9 +103,10 @@ fn seed_size_database_localises() {
     );
 }
 
-/// Denser learning (3000 snapshots, every snapshot its own state).
+/// Denser learning (3000 snapshots, every snapshot its own state):
+/// `cargo test -p rfloc-snapshot --test end_to_end -- --ignored --nocapture`.
 #[test]
-#[ignore = "slow in debug builds; run with --release -- --ignored"]
+#[ignore = "a few seconds and a 36 MB dissimilarity matrix"]
 fn dense_learning_localises_better() {
     let config = LearnConfig {
         clustering: ClusteringMethod::KMedoids {
