@@ -30,9 +30,9 @@ pub struct FilterConfig {
 impl Default for FilterConfig {
     fn default() -> Self {
         Self {
-            likelihood_scale: 0.04,
-            mixing: 0.01,
-            estimate_radius: 1.0,
+            likelihood_scale: 0.06,
+            mixing: 0.1,
+            estimate_radius: 1.5,
         }
     }
 }
