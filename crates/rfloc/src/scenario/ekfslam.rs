@@ -49,10 +49,12 @@ use super::SimOptions;
 
 mod probe;
 mod rig;
+mod slip;
 mod truth_log;
 
 use probe::NdRssiProbe;
 use rig::{Rig, RigSettings};
+use slip::{wheel_travel, OdometrySlip};
 use truth_log::{TruthLog, TruthTick};
 
 /// Driving time between two sweeps, simulated seconds.
@@ -61,6 +63,8 @@ pub const SWEEP_EVERY_S: f64 = 4.0;
 pub const SWEEP_SECONDS: f64 = 2.0;
 /// Wheel slip σ (relative, per 10 ms substep) when the scenario sets no `drive.slip_sigma`.
 pub const DEFAULT_SLIP_SIGMA: f64 = 0.05;
+/// Simulated seconds the trial waits after connecting before it starts driving.
+const SETTLE_S: f64 = 1.0;
 /// SIP period of the emulated Pioneer, seconds.
 const SIP_PERIOD_S: f64 = 0.1;
 /// Emulator substep, seconds (the Pioneer emulator runs 10 substeps per 100 ms SIP).
@@ -93,10 +97,11 @@ pub async fn run_trial(
     } else {
         DEFAULT_SLIP_SIGMA
     };
+    // The emulator's own slip is off: see `slip` for why it is applied to the odometry.
     let settings = RigSettings {
         time_scale,
-        slip_relative_std: slip,
-        slip_seed: scenario.trial_seed(trial) ^ 0x5eed_5119,
+        slip_relative_std: 0.0,
+        slip_seed: 0,
     };
     let sensors = Arc::new(Mutex::new(SensorSuite::for_trial(scenario, trial)));
     let stepper = SimulatedStepper::new(&StepperConfig::default())
@@ -142,9 +147,8 @@ impl Rms {
 /// Odometry increment covariance for wheel slip of relative σ `slip` per substep, over an
 /// increment that took `dt` seconds (robot frame: along, lateral, heading).
 fn odometry_covariance(delta: &Pose2, dt: f64, slip: f64) -> Matrix3<f64> {
-    let half = EMULATOR_TRACK_M / 2.0;
     let d = delta.x.hypot(delta.y).copysign(delta.x);
-    let (sl, sr) = (d - delta.theta * half, d + delta.theta * half);
+    let (sl, sr) = wheel_travel(delta, EMULATOR_TRACK_M);
     let n = (dt / SUBSTEP_S).round().max(1.0);
     let k = ODOMETRY_VARIANCE_MARGIN * slip * slip / n;
     let (vl, vr) = (k * sl * sl, k * sr * sr);
@@ -170,14 +174,21 @@ struct Mission {
     /// True beacons: (address, position).
     beacons: Vec<(u64, Point)>,
     slip: f64,
+    odometry_slip: OdometrySlip,
     duration: f64,
     rssi_sigma_db: f64,
-    /// Mission clock, seconds.
+    /// Mission clock, seconds: `ticks` SIP periods plus [`SWEEP_SECONDS`] per sweep.
     t: f64,
+    ticks: u64,
     dead_reckoning: Pose2,
     odometry_error: Rms,
     beacon_error: BTreeMap<u64, Rms>,
     sweeps: usize,
+    /// SIPs that arrived more than one period after the previous one (the loop fell behind;
+    /// a command then met a later tick than in an unhurried run).
+    late_sips: usize,
+    /// Reconnections of the Pioneer driver (each rebases its odometry).
+    base_reconnects: u64,
     observations: usize,
     rejected: usize,
 }
@@ -254,13 +265,22 @@ impl Mission {
                 .map(|b| (b.address, b.position))
                 .collect(),
             slip,
+            odometry_slip: OdometrySlip::new(
+                scenario.trial_seed(trial) ^ 0x5eed_5119,
+                slip,
+                EMULATOR_TRACK_M,
+                SUBSTEP_S,
+            ),
             duration: scenario.spec.duration_s,
             rssi_sigma_db,
             t: 0.0,
+            ticks: 0,
             dead_reckoning: start,
             odometry_error: Rms::default(),
             beacon_error: BTreeMap::new(),
             sweeps: 0,
+            late_sips: 0,
+            base_reconnects: 0,
             observations: 0,
             rejected: 0,
         })
@@ -298,8 +318,13 @@ impl Mission {
 
     async fn run(&mut self, rig: &Rig, truth: &TruthLog) -> anyhow::Result<()> {
         let mut odometry = rig.base.odometry();
-        // The first SIP fixes the odometry origin.
-        let (first, tick) = Self::next_sample(&mut odometry, truth).await?;
+        // Let the link settle (handshake replies, first SIPs) before the mission starts, so
+        // that the first command meets the same emulator tick in every run.
+        let (mut first, mut tick) = Self::next_sample(&mut odometry, truth).await?;
+        let settle_until = tick.sim_time + SETTLE_S;
+        while tick.sim_time < settle_until {
+            (first, tick) = Self::next_sample(&mut odometry, truth).await?;
+        }
         let mut prev_odo = first.pose;
         let mut last_sim = tick.sim_time;
         self.record(tick.truth);
@@ -313,16 +338,31 @@ impl Mission {
                 continue;
             }
             last_sim = tick.sim_time;
-            let delta = o.pose.relative_to(&prev_odo);
+            let ground = o.pose.relative_to(&prev_odo);
             prev_odo = o.pose;
-            // Mission time of this SIP. The first SIP after a sweep comes however long the
-            // sweep's pty round trips took; the robot stood still and the sweep's nominal time
-            // is already on the mission clock, so it counts as one SIP period.
-            let step = if resync { SIP_PERIOD_S } else { dt };
+            // SIP periods since the previous sample (more than one when the loop fell behind).
+            // The first SIP after a sweep comes however long the sweep's pty round trips took;
+            // the robot stood still and the sweep's nominal time is already on the mission
+            // clock, so it counts as one period.
+            let periods = if resync {
+                1
+            } else {
+                (dt / SIP_PERIOD_S).round().max(1.0) as u64
+            };
+            if periods > 1 {
+                self.late_sips += 1;
+                tracing::debug!(periods, t = self.t, stopping, "trial loop fell behind the emulated robot");
+            }
             resync = false;
-            self.t += step;
+            let step = periods as f64 * SIP_PERIOD_S;
+            self.ticks += periods;
+            self.t = self.ticks as f64 * SIP_PERIOD_S + self.sweeps as f64 * SWEEP_SECONDS;
+            let delta = self.odometry_slip.apply(&ground, step);
             self.ekf
-                .predict_odometry_with_covariance(delta, odometry_covariance(&delta, dt, self.slip))
+                .predict_odometry_with_covariance(
+                    delta,
+                    odometry_covariance(&delta, step, self.slip),
+                )
                 .map_err(|e| anyhow::anyhow!("EKF prediction: {e}"))?;
             self.dead_reckoning = self.dead_reckoning.compose(&delta);
             self.record(tick.truth);
@@ -332,8 +372,8 @@ impl Mission {
             if stopping {
                 let still = o.v.abs() < 1e-4
                     && o.w.abs() < 1e-4
-                    && delta.x.hypot(delta.y) < 5e-4
-                    && delta.theta.abs() < 1e-3;
+                    && ground.x.hypot(ground.y) < 5e-4
+                    && ground.theta.abs() < 1e-3;
                 if still {
                     self.sweep(o.pose.theta).await?;
                     self.t += SWEEP_SECONDS;
@@ -363,6 +403,7 @@ impl Mission {
             .set_velocity(0.0, 0.0)
             .await
             .context("stopping the base")?;
+        self.base_reconnects = rig.base.stats().reconnects;
         Ok(())
     }
 
@@ -429,6 +470,9 @@ impl Mission {
         self.rec
             .metric("beacons_mapped", self.ekf.beacon_count() as f64);
         self.rec.metric("sweeps", self.sweeps as f64);
+        self.rec.metric("late_sips", self.late_sips as f64);
+        self.rec
+            .metric("base_reconnects", self.base_reconnects as f64);
         self.rec.metric("observations", self.observations as f64);
         self.rec.metric("gate_rejections", self.rejected as f64);
         self.rec.metric("mission_time_s", self.t);

@@ -94,6 +94,20 @@ fn sink(
         .with_context(|| format!("creating capture {}", path.display()))
 }
 
+/// The Pioneer driver's settings for an emulator running `scale` times faster than wall time:
+/// the keep-alive pulse scaled (the robot's 2 s watchdog is simulated time), the link and
+/// handshake timeouts kept at wall-time floors. Fully scaled (100 ms of wall time at scale 20)
+/// they declared the link lost on a loaded machine, and the reconnection rebased the odometry.
+fn aria_config(scale: f64) -> AriaClientConfig {
+    let base = AriaClientConfig::default();
+    let scaled = base.clone().scaled(scale);
+    AriaClientConfig {
+        link_timeout: scaled.link_timeout.max(Duration::from_secs(1)),
+        sync_timeout: scaled.sync_timeout.max(Duration::from_millis(500)),
+        ..scaled
+    }
+}
+
 impl Rig {
     /// Starts both emulators on ptys and connects the drivers through the pty paths.
     /// `sensors` feeds the coordinator's RSSI from the robot's true pose and `antenna`'s angle.
@@ -197,7 +211,7 @@ impl Rig {
                     Ok(Recorder::new(io, sink))
                 })
             },
-            AriaClientConfig::default().scaled(scale),
+            aria_config(scale),
         )
         .await
         .context("connecting to the emulated Pioneer")?;
