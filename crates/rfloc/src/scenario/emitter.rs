@@ -6,7 +6,7 @@
 //!   pty's slave side by path through `rfloc_transport::open`, records the link into
 //!   `pioneer.cap` and drives the robot through the real `AriaClient` (handshake, SIPs,
 //!   VEL/RVEL, keep-alive). The robot's pose belief is the start pose composed with the
-//!   client's odometry; the emulator adds seeded wheel slip to the ground truth only.
+//!   client's odometry; wheel slip is off (see `run`), so odometry is only wrong where the body is stopped by a wall.
 //! - The **four 915 MHz receivers, the laser range finder and the bumpers** have no wire
 //!   protocol in the seed (nor in rfloc). They are read in-process from `rfloc-sim`'s models
 //!   at the emulator's *true* pose of the SIP period being processed.
@@ -94,9 +94,18 @@ pub async fn run_trial(
     );
     rec.metric("astar_plans", main.plans as f64);
     rec.metric("bumper_steps", main.bumper_steps as f64);
+    // Reproducibility: all three are 0 when the run followed its simulated-time schedule.
     rec.metric(
         "late_control_steps",
         (main.late_control_steps + other.late_control_steps) as f64,
+    );
+    rec.metric(
+        "late_commands",
+        (main.late_commands + other.late_commands) as f64,
+    );
+    rec.metric(
+        "gate_timeouts",
+        (main.gate_timeouts + other.gate_timeouts) as f64,
     );
     let fmt = |o: &RunOutcome| {
         o.reached.map_or_else(

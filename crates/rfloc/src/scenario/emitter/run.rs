@@ -13,9 +13,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::Context;
-use rfloc_aria::{
-    AriaClient, ClientConfig, EmulatorConfig, EmulatorHandle, RobotEmulator,
-};
+use rfloc_aria::{AriaClient, ClientConfig, EmulatorConfig, EmulatorHandle, RobotEmulator};
 use rfloc_capture::Header;
 use rfloc_emitter::{
     AntennaRss, Bumpers, NavigatorConfig, NavigatorState, OccupancyGridConfig,
@@ -39,6 +37,10 @@ pub const SETTLE_TICKS: u64 = 10;
 pub const TICK_S: f64 = 0.1;
 /// The robot believing it has arrived for this long without the referee agreeing ends the run.
 pub const ARRIVED_HOLD_S: f64 = 10.0;
+/// Wall-clock wait for SIPs before the link counts as lost (the gate may pause them).
+pub const LINK_TIMEOUT: Duration = Duration::from_secs(10);
+/// Wall-clock wait for the emulator to read a command before it counts as late.
+pub const COMMAND_READ_WAIT: Duration = Duration::from_millis(50);
 /// Side of the square map centred on the start, metres.
 pub const MAP_SIDE_M: f64 = 12.0;
 
@@ -74,6 +76,10 @@ pub struct RunOutcome {
     pub bumper_steps: u64,
     pub late_control_steps: u64,
     pub rejected_rss: u64,
+    /// Commands not read by the emulator before the next tick (landed one tick late).
+    pub late_commands: u64,
+    /// Times the emulator stopped waiting for the control loop.
+    pub gate_timeouts: u64,
 }
 
 /// The emulator's simulated time as a clock (captures and odometry carry simulated seconds).
@@ -179,9 +185,8 @@ pub async fn run_system(spec: &RunSpec<'_>) -> anyhow::Result<RunOutcome> {
         1.0
     };
 
-    let (master, slave, link) = pty_link()?;
     let log = TruthLog::new();
-    let mut emulator = RobotEmulator::new(EmulatorConfig {
+    let emulator = RobotEmulator::new(EmulatorConfig {
         time_scale,
         initial_pose: start,
         // No wheel slip: the emulator draws slip noise on every tick from the moment it starts
@@ -193,20 +198,79 @@ pub async fn run_system(spec: &RunSpec<'_>) -> anyhow::Result<RunOutcome> {
     })
     .with_motion_hook(log.motion_hook(Arc::clone(&world), radius));
     let handle = emulator.handle();
-    let emulator_task = tokio::spawn(async move {
-        if let Err(e) = emulator.serve(master).await {
-            tracing::warn!(error = %e, "robot emulator ended");
-        }
-    });
+    let (thread, link) = EmulatorThread::spawn(emulator).await?;
     let clock: SharedClock = Arc::new(EmulatorClock(handle.clone()));
 
     let result = drive(
         spec, &world, start, seed, radius, goal, emitter, &link, &log, &handle, &clock, time_scale,
     )
     .await;
-    emulator_task.abort();
-    drop(slave);
-    result
+    log.open_gate();
+    thread.stop();
+    let mut out = result?;
+    out.gate_timeouts = log.gate_timeouts();
+    Ok(out)
+}
+
+/// The emulator on a thread of its own with a single-threaded runtime: the tick gate blocks
+/// it, which must not block the client's or the trial's tasks.
+struct EmulatorThread {
+    stop: tokio::sync::oneshot::Sender<()>,
+    join: std::thread::JoinHandle<()>,
+}
+
+impl EmulatorThread {
+    /// Starts serving the master side of a new pty; returns the link to its slave side.
+    async fn spawn(mut emulator: RobotEmulator) -> anyhow::Result<(Self, LinkConfig)> {
+        let (link_tx, link_rx) = tokio::sync::oneshot::channel::<anyhow::Result<LinkConfig>>();
+        let (stop, stop_rx) = tokio::sync::oneshot::channel::<()>();
+        let join = std::thread::Builder::new()
+            .name("pioneer-emulator".into())
+            .spawn(move || {
+                let rt = match tokio::runtime::Builder::new_current_thread()
+                    .enable_all()
+                    .build()
+                {
+                    Ok(rt) => rt,
+                    Err(e) => {
+                        let _ = link_tx.send(Err(e.into()));
+                        return;
+                    }
+                };
+                rt.block_on(async move {
+                    // The pty is registered with this thread's runtime.
+                    let (master, slave, link) = match pty_link() {
+                        Ok(p) => p,
+                        Err(e) => {
+                            let _ = link_tx.send(Err(e));
+                            return;
+                        }
+                    };
+                    let _ = link_tx.send(Ok(link));
+                    tokio::select! {
+                        _ = stop_rx => {}
+                        r = emulator.serve(master) => if let Err(e) = r {
+                            tracing::warn!(error = %e, "robot emulator ended");
+                        }
+                    }
+                    // The slave side stays open until the end so the master never hangs up.
+                    drop(slave);
+                });
+            })
+            .context("starting the emulator thread")?;
+        let link = link_rx
+            .await
+            .context("the emulator thread ended before serving")??;
+        Ok((Self { stop, join }, link))
+    }
+
+    /// Stops serving and waits for the thread.
+    fn stop(self) {
+        let _ = self.stop.send(());
+        if self.join.join().is_err() {
+            tracing::warn!("the emulator thread panicked");
+        }
+    }
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -237,16 +301,16 @@ async fn drive(
     ));
     let sink = CaptureSink::create(&spec.capture, &header, Arc::clone(clock))
         .with_context(|| format!("creating {}", spec.capture.display()))?;
-    let client = AriaClient::from_stream(
-        Recorder::new(io, sink.clone()),
-        ClientConfig {
-            clock: Some(Arc::clone(clock)),
-            ..ClientConfig::default()
-        }
-        .scaled(time_scale),
-    )
-    .await
-    .context("connecting to the emulated Pioneer")?;
+    let mut client_config = ClientConfig {
+        clock: Some(Arc::clone(clock)),
+        ..ClientConfig::default()
+    }
+    .scaled(time_scale);
+    // SIPs pause while the gate holds the emulator for a slow control step.
+    client_config.link_timeout = LINK_TIMEOUT;
+    let client = AriaClient::from_stream(Recorder::new(io, sink.clone()), client_config)
+        .await
+        .context("connecting to the emulated Pioneer")?;
 
     let mut sensors = SensorSuite::for_trial(scenario, spec.trial);
     let max_range = sensors.scanner.max_range;
@@ -256,7 +320,6 @@ async fn drive(
     )?;
     let mut out = RunOutcome::default();
     let mut odom = client.odometry();
-    let sip_wait = Duration::from_secs_f64((20.0 * TICK_S / time_scale).max(2.0));
     let mut first_tick: Option<u64> = None;
     let mut last_tick = 0u64;
     let mut next_control = 0u64;
@@ -264,7 +327,7 @@ async fn drive(
     let mut arrived_since: Option<f64> = None;
 
     loop {
-        tokio::time::timeout(sip_wait, odom.changed())
+        tokio::time::timeout(LINK_TIMEOUT, odom.changed())
             .await
             .context("the emulated Pioneer stopped sending SIPs")?
             .context("the Pioneer client stopped")?;
@@ -303,71 +366,53 @@ async fn drive(
         if out.reached.is_some() || t >= scenario.spec.duration_s {
             break;
         }
-        if tick < next_control {
-            continue;
-        }
-        if tick > next_control {
-            out.late_control_steps += 1;
-        }
-        // Stay on the schedule of the first SIP, whatever the wall-clock delays.
-        while next_control <= tick {
-            next_control += CONTROL_TICKS;
-        }
-        // The command of the previous control step, sent right after this tick's SIP.
-        if let Some((v, w)) = pending.take() {
-            client
-                .set_velocity(v, w)
-                .await
-                .context("sending VEL/RVEL")?;
-        }
-        let t0 = std::time::Instant::now();
-        let truth = log
-            .after_tick(tick)
-            .context("no true pose logged for the current tick")?;
-        let pose = start.compose(&sample.pose);
-        out.pose_estimate.push((t, pose));
-        // 915 MHz receivers and laser: in-process models at the true pose (no wire protocol).
-        if let Some(rss) = to_antenna_rss(&sensors.emitter_rss(world, &truth)) {
-            if let Some(est) = homing.observe_rss(t, &pose, &rss) {
-                let e = Point::new(est.mean.x, est.mean.y).distance(&emitter);
-                let r = Point::new(est.raw.x, est.raw.y).distance(&emitter);
-                out.filtered_errors.push(e);
-                out.raw_errors.push(r);
-                out.final_estimate = Some(est.mean);
+        if tick >= next_control {
+            if tick > next_control {
+                out.late_control_steps += 1;
             }
-        }
-        let beams: Vec<ScanBeam> = sensors
-            .laser_scan(world, &truth)
-            .into_iter()
-            .map(|b| ScanBeam {
-                angle_rad: b.angle,
-                range_m: if b.hit { b.range } else { max_range },
-                max_range_m: max_range,
-            })
-            .collect();
-        homing.observe_scan(&pose, beams);
-        let contact = sensors.bumpers(world, &truth, radius);
-        let bumpers = Bumpers {
-            front: contact.front,
-            rear: contact.rear,
-        };
-        if bumpers.front || bumpers.rear {
-            out.bumper_steps += 1;
-        }
-        let cmd = homing.command(t, pose, bumpers);
-        if cmd.state == NavigatorState::Arrived {
-            out.robot_arrived = true;
-            let since_arrival = *arrived_since.get_or_insert(t);
-            if t - since_arrival >= ARRIVED_HOLD_S {
-                break;
+            // Stay on the schedule of the first SIP, whatever the wall-clock delays.
+            while next_control <= tick {
+                next_control += CONTROL_TICKS;
             }
-        } else {
-            arrived_since = None;
+            // The command of the previous control step, sent right after this tick's SIP.
+            if let Some((v, w)) = pending.take() {
+                let before = handle.state().commands;
+                client
+                    .set_velocity(v, w)
+                    .await
+                    .context("sending VEL/RVEL")?;
+                if !command_read(handle, before + 2).await {
+                    out.late_commands += 1;
+                }
+            }
+            let step = ControlStep {
+                t,
+                tick,
+                pose: start.compose(&sample.pose),
+            };
+            let cmd = control_step(
+                &step,
+                &mut homing,
+                &mut sensors,
+                world,
+                log,
+                radius,
+                emitter,
+                max_range,
+                &mut out,
+            )?;
+            if cmd.state == NavigatorState::Arrived {
+                out.robot_arrived = true;
+                let since_arrival = *arrived_since.get_or_insert(t);
+                if t - since_arrival >= ARRIVED_HOLD_S {
+                    break;
+                }
+            } else {
+                arrived_since = None;
+            }
+            pending = Some((cmd.v_mps, cmd.omega_rps));
         }
-        pending = Some((cmd.v_mps, cmd.omega_rps));
-        if std::env::var_os("RFLOC_EMITTER_TIMING").is_some() {
-            eprintln!("tick {tick} late {} compute {:?} replanned {}", out.late_control_steps, t0.elapsed(), cmd.replanned);
-        }
+        log.release_through(tick + 1);
     }
     out.plans = homing.plan_count();
     out.rejected_rss = homing.rejected_rss();
@@ -379,6 +424,82 @@ async fn drive(
     sink.flush()
         .with_context(|| format!("flushing {}", spec.capture.display()))?;
     Ok(out)
+}
+
+/// When and where a control step happens.
+struct ControlStep {
+    t: f64,
+    tick: u64,
+    /// The robot's pose belief: start pose composed with odometry.
+    pose: Pose2,
+}
+
+/// Sensors at the true pose of the step's tick → filter, map → navigator command.
+#[allow(clippy::too_many_arguments)]
+fn control_step(
+    step: &ControlStep,
+    homing: &mut EmitterHoming,
+    sensors: &mut SensorSuite,
+    world: &rfloc_sim::World,
+    log: &TruthLog,
+    radius: f64,
+    emitter: Point,
+    max_range: f64,
+    out: &mut RunOutcome,
+) -> anyhow::Result<rfloc_emitter::NavigationCommand> {
+    let (t, pose) = (step.t, step.pose);
+    let truth = log
+        .after_tick(step.tick)
+        .context("no true pose logged for the current tick")?;
+    out.pose_estimate.push((t, pose));
+    // 915 MHz receivers and laser: in-process models at the true pose (no wire protocol).
+    if let Some(rss) = to_antenna_rss(&sensors.emitter_rss(world, &truth)) {
+        if let Some(est) = homing.observe_rss(t, &pose, &rss) {
+            out.filtered_errors
+                .push(Point::new(est.mean.x, est.mean.y).distance(&emitter));
+            out.raw_errors
+                .push(Point::new(est.raw.x, est.raw.y).distance(&emitter));
+            out.final_estimate = Some(est.mean);
+        }
+    }
+    let beams: Vec<ScanBeam> = sensors
+        .laser_scan(world, &truth)
+        .into_iter()
+        .map(|b| ScanBeam {
+            angle_rad: b.angle,
+            range_m: if b.hit { b.range } else { max_range },
+            max_range_m: max_range,
+        })
+        .collect();
+    homing.observe_scan(&pose, beams);
+    let contact = sensors.bumpers(world, &truth, radius);
+    let bumpers = Bumpers {
+        front: contact.front,
+        rear: contact.rear,
+    };
+    if bumpers.front || bumpers.rear {
+        out.bumper_steps += 1;
+    }
+    Ok(homing.command(t, pose, bumpers))
+}
+
+/// Waits briefly until the emulator has handled `count` commands. While the gate holds the
+/// next tick, an emulator that is free reads them at once; one already blocked in the next
+/// tick cannot, and the command lands a tick late (reported as `false`).
+async fn command_read(handle: &EmulatorHandle, count: u64) -> bool {
+    let deadline = tokio::time::Instant::now() + COMMAND_READ_WAIT;
+    let mut rx = handle.subscribe();
+    loop {
+        if rx.borrow_and_update().commands >= count {
+            return true;
+        }
+        if tokio::time::timeout_at(deadline, rx.changed())
+            .await
+            .is_err()
+        {
+            return rx.borrow().commands >= count;
+        }
+    }
 }
 
 /// Capture file of a run inside the trial folder.

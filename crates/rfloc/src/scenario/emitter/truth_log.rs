@@ -3,8 +3,15 @@
 //! the emulator reports as a wheel stall), and the true pose at the end of every SIP period is
 //! logged so that sensors and scoring can use the truth of the exact period a SIP came from,
 //! however late the trial loop reads it.
+//!
+//! The log is also a **gate**: once the trial loop has opened it, the emulator may start tick
+//! `k` only after the loop has released it (it releases `k + 1` when it has finished with SIP
+//! `k`). So the robot never runs ahead of a slow control loop on a loaded machine, however
+//! large the time scale; simulated time simply waits. The emulator must run on its own thread,
+//! since waiting blocks it.
 
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::{Arc, Condvar, Mutex, PoisonError};
+use std::time::Duration;
 
 use rfloc_aria::emulator::MotionHook;
 use rfloc_pose::Pose2;
@@ -13,17 +20,25 @@ use rfloc_sim::{Point, World};
 /// Motion substeps per SIP period in the emulator (`rfloc_aria`'s `SUBSTEPS`).
 pub const SUBSTEPS_PER_TICK: u64 = 10;
 
+/// Longest wait for a release before the emulator goes on anyway (a stuck loop must not hang
+/// the run forever).
+const GATE_TIMEOUT: Duration = Duration::from_secs(10);
+
 #[derive(Debug, Default)]
 struct LogState {
     calls: u64,
     /// True pose after tick `k + 1` (ticks counted from 1).
     ticks: Vec<Pose2>,
+    /// Ticks up to this one may run; `None` = gate open.
+    released: Option<u64>,
+    /// Releases that timed out.
+    gate_timeouts: u64,
 }
 
-/// Shared, append-only log of the true pose per emulator tick.
+/// Shared, append-only log of the true pose per emulator tick, and the tick gate.
 #[derive(Debug, Clone, Default)]
 pub struct TruthLog {
-    state: Arc<Mutex<LogState>>,
+    state: Arc<(Mutex<LogState>, Condvar)>,
 }
 
 impl TruthLog {
@@ -36,13 +51,60 @@ impl TruthLog {
     /// True pose after tick `tick` (1-based), if the emulator has got that far.
     #[must_use]
     pub fn after_tick(&self, tick: u64) -> Option<Pose2> {
-        let s = self.state.lock().unwrap_or_else(PoisonError::into_inner);
+        let s = self.lock();
         let i = usize::try_from(tick.checked_sub(1)?).ok()?;
         s.ticks.get(i).copied()
     }
 
+    fn lock(&self) -> std::sync::MutexGuard<'_, LogState> {
+        self.state.0.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// Lets the emulator run ticks up to and including `tick` (and closes the gate beyond).
+    pub fn release_through(&self, tick: u64) {
+        let mut s = self.lock();
+        s.released = Some(s.released.map_or(tick, |r| r.max(tick)));
+        self.state.1.notify_all();
+    }
+
+    /// Opens the gate for good (end of the run).
+    pub fn open_gate(&self) {
+        let mut s = self.lock();
+        s.released = None;
+        self.state.1.notify_all();
+    }
+
+    /// How many times the emulator stopped waiting for a release.
+    #[must_use]
+    pub fn gate_timeouts(&self) -> u64 {
+        self.lock().gate_timeouts
+    }
+
+    /// Called before each substep is accepted: blocks at the first substep of a tick that has
+    /// not been released.
+    fn wait_for_release(&self) {
+        let mut s = self.lock();
+        if s.calls % SUBSTEPS_PER_TICK != 0 {
+            return;
+        }
+        let tick = s.calls / SUBSTEPS_PER_TICK + 1;
+        while s.released.is_some_and(|r| r < tick) {
+            let (next, timeout) = self
+                .state
+                .1
+                .wait_timeout(s, GATE_TIMEOUT)
+                .unwrap_or_else(PoisonError::into_inner);
+            s = next;
+            if timeout.timed_out() {
+                s.gate_timeouts += 1;
+                tracing::warn!(tick, "simulation gate timed out; the emulator goes on");
+                break;
+            }
+        }
+    }
+
     fn record(&self, accepted: Pose2) {
-        let mut s = self.state.lock().unwrap_or_else(PoisonError::into_inner);
+        let mut s = self.lock();
         s.calls += 1;
         if s.calls % SUBSTEPS_PER_TICK == 0 {
             s.ticks.push(accepted);
@@ -55,6 +117,7 @@ impl TruthLog {
     pub fn motion_hook(&self, world: Arc<World>, radius: f64) -> MotionHook {
         let log = self.clone();
         Box::new(move |current: &Pose2, proposed: &Pose2| {
+            log.wait_for_release();
             let free = |p: &Pose2| !world.disk_collides(&Point::new(p.x, p.y), radius);
             let accepted = if free(proposed) {
                 *proposed
@@ -91,5 +154,33 @@ mod tests {
         assert_eq!(log.after_tick(2), Some(pose));
         assert!(log.after_tick(1).is_some());
         assert!(log.after_tick(0).is_none() && log.after_tick(3).is_none());
+    }
+
+    #[test]
+    fn gate_holds_the_next_tick_until_released() {
+        let world = Arc::new(
+            World::from_toml_str("[area]\nmin=[0.0,0.0]\nmax=[2.0,2.0]\n", Path::new("w")).unwrap(),
+        );
+        let log = TruthLog::new();
+        log.release_through(1);
+        let mut hook = log.motion_hook(world, 0.2);
+        let runner = std::thread::spawn(move || {
+            let p = Pose2::new(1.0, 1.0, 0.0);
+            for _ in 0..2 * SUBSTEPS_PER_TICK {
+                let _ = hook(&p, &p);
+            }
+        });
+        // Tick 1 runs; tick 2 waits for its release.
+        let deadline = std::time::Instant::now() + Duration::from_secs(5);
+        while log.after_tick(1).is_none() && std::time::Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        std::thread::sleep(Duration::from_millis(50));
+        assert!(log.after_tick(1).is_some());
+        assert!(log.after_tick(2).is_none());
+        log.release_through(2);
+        runner.join().unwrap();
+        assert!(log.after_tick(2).is_some());
+        assert_eq!(log.gate_timeouts(), 0);
     }
 }
