@@ -302,6 +302,49 @@ mod tests {
         assert_eq!(capped.iterations, 5);
     }
 
+    /// The sparse-row column minima used by the iteration bound equal a dense brute force,
+    /// including rows with a uniform (prior) part.
+    #[test]
+    fn column_minima_match_dense_brute_force() {
+        use crate::action::Action;
+        use crate::transition::{TransitionCounts, TransitionPrior};
+        let mut c = TransitionCounts::new(6);
+        for (k, a) in Action::ALL.iter().enumerate() {
+            for s in 0..6 {
+                c.record(s, *a, (s + k) % 6).unwrap();
+                c.record(s, *a, (s * 2 + 1) % 6).unwrap();
+            }
+        }
+        c.record_weighted(2, Action::Forward, 5, 3.0).unwrap();
+        for prior in [
+            TransitionPrior {
+                alpha: 0.0,
+                self_fraction: 0.0,
+            },
+            TransitionPrior {
+                alpha: 1.0,
+                self_fraction: 0.5,
+            },
+            TransitionPrior {
+                alpha: 6.0,
+                self_fraction: 0.0,
+            },
+        ] {
+            let m = c.to_model(&prior);
+            let h = column_minima(&m);
+            for (j, hj) in h.iter().enumerate() {
+                let brute = (0..m.actions())
+                    .flat_map(|a| (0..6).map(move |s| (a, s)))
+                    .map(|(a, s)| m.prob(a, s, j))
+                    .fold(f64::INFINITY, f64::min);
+                assert!(
+                    (hj - brute).abs() < 1e-15,
+                    "{prior:?} j={j}: {hj} vs {brute}"
+                );
+            }
+        }
+    }
+
     #[test]
     fn rejects_bad_inputs() {
         let m = TransitionModel::from_dense(&[vec![vec![1.0]]]).unwrap();
