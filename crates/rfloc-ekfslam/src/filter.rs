@@ -394,14 +394,18 @@ impl EkfSlam {
         // M = P Hᵀ using only the 3 pose and 2 beacon columns of H: O(n·m).
         let mut mm = DMatrix::zeros(n, m);
         for (k, s) in scalars.iter().enumerate() {
-            let hp = &s.row.d_pose;
-            let hb = &s.row.d_beacon;
-            for r in 0..n {
-                mm[(r, k)] = self.p[(r, 0)] * hp[0]
-                    + self.p[(r, 1)] * hp[1]
-                    + self.p[(r, 2)] * hp[2]
-                    + self.p[(r, bi)] * hb[0]
-                    + self.p[(r, bi + 1)] * hb[1];
+            let cols = [
+                (0, s.row.d_pose[0]),
+                (1, s.row.d_pose[1]),
+                (2, s.row.d_pose[2]),
+                (bi, s.row.d_beacon[0]),
+                (bi + 1, s.row.d_beacon[1]),
+            ];
+            let mut out = mm.column_mut(k);
+            for (c, h) in cols {
+                if h != 0.0 {
+                    out.axpy(h, &self.p.column(c), 1.0);
+                }
             }
         }
         let mut s_mat = DMatrix::zeros(m, m);
@@ -444,14 +448,14 @@ impl EkfSlam {
         let k = kt.transpose();
         self.x += &k * &nu;
         self.x[2] = wrap_angle(self.x[2]);
+        // Both forms are applied as one pass of bitwise-symmetric rank-m corrections, so P stays
+        // exactly symmetric without a separate symmetrisation pass.
         match self.config.covariance_update {
             CovarianceUpdate::Joseph => {
-                // (I−KH)P(I−KH)ᵀ + KRKᵀ = P − KMᵀ − MKᵀ + K S Kᵀ, valid for any gain K.
-                let ks = &k * &s_mat;
-                let mt = mm.transpose();
-                self.p.gemm(-1.0, &k, &mt, 1.0);
-                self.p.gemm(-1.0, &mm, &kt, 1.0);
-                self.p.gemm(1.0, &ks, &kt, 1.0);
+                // (I−KH)P(I−KH)ᵀ + KRKᵀ = P − KMᵀ − MKᵀ + K S Kᵀ, valid for any gain K;
+                // K S Kᵀ = G Gᵀ with G = K L.
+                let g = &k * chol.l();
+                joseph_correction(&mut self.p, &k, &mm, &g);
             }
             CovarianceUpdate::Cholesky => {
                 // P − W Wᵀ with W = M L⁻ᵀ, i.e. Wᵀ = L⁻¹ Mᵀ.
@@ -459,10 +463,9 @@ impl EkfSlam {
                     self.stats.invalid += 1;
                     return ObservationOutcome::Invalid(InvalidObservation::SingularInnovation);
                 };
-                self.p.gemm_tr(-1.0, &wt, &wt, 1.0);
+                downdate(&mut self.p, &wt.transpose());
             }
         }
-        symmetrise(&mut self.p);
         self.stats.updates += 1;
         ObservationOutcome::Updated { nis, dof: m }
     }
@@ -603,14 +606,33 @@ fn validate(obs: &BeaconObservation) -> Result<(), InvalidObservation> {
     Ok(())
 }
 
-/// `P ← (P + Pᵀ)/2` in place.
-fn symmetrise(p: &mut DMatrix<f64>) {
+/// `P[i][j] += Σₐ (G[i][a]·G[j][a] − (K[i][a]·M[j][a] + M[i][a]·K[j][a]))` over all i, j: the
+/// expanded Joseph correction. Each term is symmetric in (i, j) bit for bit.
+fn joseph_correction(p: &mut DMatrix<f64>, k: &DMatrix<f64>, m: &DMatrix<f64>, g: &DMatrix<f64>) {
     let n = p.nrows();
-    for i in 0..n {
-        for j in (i + 1)..n {
-            let v = 0.5 * (p[(i, j)] + p[(j, i)]);
-            p[(i, j)] = v;
-            p[(j, i)] = v;
+    let cols = k.ncols();
+    for a in 0..cols {
+        let (ka, ma, ga) = (k.column(a), m.column(a), g.column(a));
+        for (j, mut pcol) in p.column_iter_mut().enumerate().take(n) {
+            let (kj, mj, gj) = (ka[j], ma[j], ga[j]);
+            for (((pij, ki), mi), gi) in
+                pcol.iter_mut().zip(ka.iter()).zip(ma.iter()).zip(ga.iter())
+            {
+                *pij += gi * gj - (ki * mj + mi * kj);
+            }
+        }
+    }
+}
+
+/// `P[i][j] −= Σₐ W[i][a]·W[j][a]`.
+fn downdate(p: &mut DMatrix<f64>, w: &DMatrix<f64>) {
+    for a in 0..w.ncols() {
+        let wa = w.column(a);
+        for (j, mut pcol) in p.column_iter_mut().enumerate() {
+            let wj = wa[j];
+            for (pij, wi) in pcol.iter_mut().zip(wa.iter()) {
+                *pij -= wi * wj;
+            }
         }
     }
 }

@@ -226,3 +226,34 @@ fn refuses_with_typed_reasons() {
     );
     assert!(matches!(r, Err(InitError::Ambiguous { .. })), "{r:?}");
 }
+
+#[test]
+fn continuous_turn_with_odometry_headings() {
+    // One reading every 10° of a continuous turn, each with its own (odometry) heading; the
+    // odometry heading carries a 1 % scale error.
+    let model = RssiModel::seed002_blind_spot();
+    let solver = InitialPoseSolver::new(
+        TagGrid::seed002_test_field(),
+        model.clone(),
+        InitialPoseConfig::default(),
+    );
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    let truth = Pose2::new(0.2, 0.2, 0.6);
+    let stops: Vec<TurnStop> = (0..36)
+        .map(|k| {
+            let turned = f64::from(k) * 10f64.to_radians();
+            let pose = Pose2::new(truth.x, truth.y, truth.theta + turned);
+            TurnStop {
+                heading_rad: turned * 1.01,
+                readings: common::scan(solver.grid(), &model, &pose, (-0.10, 0.0), 0.9, &mut rng),
+            }
+        })
+        .collect();
+    let (p, h) = errors(&solver, &stops, &truth);
+    println!(
+        "continuous turn, 36 readings, 1 % odometry scale error: {:.1} mm / {:.2}°",
+        p * 1e3,
+        h.to_degrees()
+    );
+    assert!(p < 0.010 && h < 5f64.to_radians(), "{p} {h}");
+}
