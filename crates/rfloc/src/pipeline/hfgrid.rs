@@ -147,7 +147,12 @@ impl HfGridPipeline {
 
     fn start_tracking(&mut self, init: &InitialPose, time: f64) -> Option<PoseEstimate> {
         // The solver answers for the start of the turn; the robot has turned since.
-        let rotated = self.current_heading.unwrap_or(0.0);
+        // With odometry, the rotation since the start is known exactly; with stop marks it is
+        // the last mark's heading.
+        let rotated = match (self.odom_start, self.odom_last) {
+            (Some(start), Some(last)) => angle_diff(last.theta, start.theta),
+            _ => self.current_heading.unwrap_or(0.0),
+        };
         let now = Pose2::new(init.pose.x, init.pose.y, init.pose.theta + rotated);
         let mut cov = init.covariance;
         // Keep the filter's start spread sane even if the solver is very confident.

@@ -56,7 +56,7 @@ impl SimRuntime {
     }
 }
 
-fn pty_link(baud: u32) -> anyhow::Result<(SerialStream, SerialStream, LinkConfig)> {
+pub(crate) fn pty_link(baud: u32) -> anyhow::Result<(SerialStream, SerialStream, LinkConfig)> {
     let (master, slave) = SerialStream::pair().context("creating a pseudo-terminal pair")?;
     let path = slave.name().context("pseudo-terminal has no name")?;
     let link = LinkConfig::Serial(SerialLink {
