@@ -343,15 +343,25 @@ impl Mission {
             // SIP periods since the previous sample (more than one when the loop fell behind).
             // The first SIP after a sweep comes however long the sweep's pty round trips took;
             // the robot stood still and the sweep's nominal time is already on the mission
-            // clock, so it counts as one period.
-            let periods = if resync {
+            // clock, so it counts as one period. Driving, a late loop is counted as it happened
+            // (the command it sends then meets a later tick: `late_sips` counts these).
+            // A sample without wheel motion also counts as one period: nothing physical
+            // happened, and a loop that fell behind at a standstill must not shift the clock.
+            let standing = ground.x == 0.0 && ground.y == 0.0 && ground.theta == 0.0;
+            let periods = if resync || standing {
                 1
             } else {
                 (dt / SIP_PERIOD_S).round().max(1.0) as u64
             };
             if periods > 1 {
+                // Only counted while driving (see `standing`).
                 self.late_sips += 1;
-                tracing::debug!(periods, t = self.t, stopping, "trial loop fell behind the emulated robot");
+                tracing::debug!(
+                    periods,
+                    t = self.t,
+                    stopping,
+                    "trial loop fell behind the emulated robot"
+                );
             }
             resync = false;
             let step = periods as f64 * SIP_PERIOD_S;

@@ -15,10 +15,8 @@ use tokio::task::JoinHandle;
 
 /// States kept (10 s of simulated time at the 100 ms SIP period).
 const KEEP: usize = 100;
-/// Largest odometry difference (m, rad) between a SIP and the emulator state it came from:
-/// P3-DX-SH position units are 1 mm, heading units 2π/4096.
-const MATCH_M: f64 = 0.003;
-const MATCH_RAD: f64 = 0.004;
+/// Metres a radian of heading difference counts as when matching odometry.
+const HEADING_WEIGHT_M: f64 = 1.0;
 
 /// One tick of the emulator.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -71,24 +69,24 @@ impl TruthLog {
         TruthLog { ticks, task }
     }
 
-    /// The newest tick whose odometry matches `odometry` (the pose a SIP reported), else the
-    /// tick with the nearest odometry; `None` before the first state.
+    /// The tick whose odometry is closest to `odometry` (the pose a SIP reported; the right
+    /// tick is within the SIP's quantisation, ≤ 0.5 mm and ≤ 0.0008 rad), preferring the newest
+    /// among equals (a robot standing still); `None` before the first state.
     #[must_use]
     pub fn at_odometry(&self, odometry: &Pose2) -> Option<TruthTick> {
         let q = self.ticks.lock().ok()?;
-        let matches = |t: &TruthTick| {
-            t.odometry.distance(odometry) <= MATCH_M
-                && angle_diff(t.odometry.theta, odometry.theta).abs() <= MATCH_RAD
+        let gap = |t: &TruthTick| {
+            t.odometry.distance(odometry)
+                + HEADING_WEIGHT_M * angle_diff(t.odometry.theta, odometry.theta).abs()
         };
-        q.iter().rev().find(|t| matches(t)).copied().or_else(|| {
-            q.iter()
-                .min_by(|a, b| {
-                    a.odometry
-                        .distance(odometry)
-                        .total_cmp(&b.odometry.distance(odometry))
-                })
-                .copied()
-        })
+        let mut best: Option<(f64, TruthTick)> = None;
+        for t in q.iter().rev() {
+            let g = gap(t);
+            if best.is_none_or(|(b, _)| g < b) {
+                best = Some((g, *t));
+            }
+        }
+        best.map(|(_, t)| t)
     }
 
     /// The newest tick.
