@@ -9,9 +9,7 @@ use std::time::{Duration, SystemTime};
 use anyhow::Context;
 use rfloc_capture::Header;
 use rfloc_pose::EstimateMode;
-use rfloc_transport::{
-    open, CaptureSink, LinkConfig, MonotonicClock, Recorder, SharedClock, Transport,
-};
+use rfloc_transport::{open, CaptureSink, MonotonicClock, Recorder, SharedClock, Transport};
 use tokio::sync::mpsc;
 use tokio_util::sync::CancellationToken;
 use tracing::Instrument;
@@ -188,6 +186,7 @@ pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
         precision: cfg.pose.precision,
     };
     let mut estimator = pipeline::build(&cfg.estimator);
+    tracing::info!(pipeline = estimator.name(), "estimator ready");
     let stale_after: HashMap<String, Duration> = cfg
         .devices
         .iter()
@@ -286,7 +285,7 @@ pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
     for s in servers {
         let _ = tokio::time::timeout(Duration::from_secs(1), s).await;
     }
-    tracing::info!("stopped");
+    tracing::info!(slow_clients_dropped = hub.dropped_clients(), "stopped");
     Ok(())
 }
 
@@ -317,10 +316,4 @@ fn spawn_signal_handler(stop: CancellationToken) {
         }
         stop.cancel();
     });
-}
-
-/// Link description for logs.
-#[must_use]
-pub fn describe_link(link: Option<&LinkConfig>) -> String {
-    link.map_or_else(|| "emulated".into(), LinkConfig::describe)
 }

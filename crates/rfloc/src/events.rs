@@ -7,7 +7,9 @@ use crate::message::DeviceState;
 /// One observation or status change from a device task.
 #[derive(Debug, Clone)]
 pub enum DeviceEvent {
-    /// Wheel odometry from the Pioneer base (pose in the odometry frame).
+    /// Wheel odometry from the Pioneer base (pose in the odometry frame; `v`, `w` for
+    /// pipelines that use the measured speeds).
+    #[allow(dead_code)]
     Odometry {
         device: String,
         t: f64,

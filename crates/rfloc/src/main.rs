@@ -103,11 +103,11 @@ enum Command {
     },
 }
 
-fn init_logging(level: &str) {
+fn init_logging(level: &str, format: &str) {
     use tracing_subscriber::EnvFilter;
     let filter = EnvFilter::try_from_env("RFLOC_LOG").unwrap_or_else(|_| EnvFilter::new(level));
     // Under systemd the journal adds its own timestamps and does not want colours.
-    let journald = std::env::var_os("JOURNAL_STREAM").is_some();
+    let journald = std::env::var_os("JOURNAL_STREAM").is_some() && format != "full";
     let builder = tracing_subscriber::fmt()
         .with_env_filter(filter)
         .with_writer(std::io::stderr)
@@ -183,7 +183,7 @@ fn main() -> ExitCode {
                     }
                 }
             };
-            init_logging(&cfg.log.level);
+            init_logging(&cfg.log.level, &cfg.log.format);
             run_async(daemon::run(
                 cfg,
                 daemon::RunOptions {
@@ -197,7 +197,7 @@ fn main() -> ExitCode {
                 Ok(c) => c,
                 Err(code) => return code,
             };
-            init_logging(&cfg.log.level);
+            init_logging(&cfg.log.level, &cfg.log.format);
             run_async(daemon::run(
                 cfg,
                 daemon::RunOptions {
@@ -211,7 +211,7 @@ fn main() -> ExitCode {
             pipeline,
             config,
         } => {
-            init_logging("warn");
+            init_logging("warn", "text");
             let cfg = match config.map(|c| load_config(&c)).transpose() {
                 Ok(c) => c,
                 Err(code) => return code,
@@ -224,7 +224,7 @@ fn main() -> ExitCode {
             trials,
             time_scale,
         } => {
-            init_logging("warn");
+            init_logging("warn", "text");
             run_async(scenario::run(
                 &path,
                 scenario::SimOptions {
@@ -240,7 +240,7 @@ fn main() -> ExitCode {
             raw,
             count,
         } => {
-            init_logging("warn");
+            init_logging("warn", "text");
             let endpoint = unix.map_or(watch::Endpoint::Tcp(tcp), watch::Endpoint::Unix);
             run_async(watch::watch(endpoint, raw, count))
         }

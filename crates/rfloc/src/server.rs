@@ -44,6 +44,7 @@ impl PoseHub {
     }
 
     /// How long one line may take to write before the client counts as stuck and is dropped.
+    #[cfg(test)]
     #[must_use]
     pub fn with_write_timeout(mut self, timeout: Duration) -> Self {
         self.write_timeout = timeout;
@@ -75,6 +76,7 @@ impl PoseHub {
     }
 
     /// The last POSE line published.
+    #[cfg(test)]
     #[must_use]
     pub fn last_pose(&self) -> Option<Arc<str>> {
         self.latest.lock().ok().and_then(|l| l.pose.clone())

@@ -76,7 +76,7 @@ pub(super) async fn run(
                     if changed.is_err() {
                         break;
                     }
-                    let o = odom.borrow_and_update().clone();
+                    let o = *odom.borrow_and_update();
                     let ev = DeviceEvent::Odometry { device: ctx.device.name.clone(), t: o.time, pose: o.pose, v: o.v, w: o.w };
                     if ctx.events.send(ev).await.is_err() {
                         return;

@@ -243,7 +243,7 @@ pub async fn run_trial(
         tokio::select! {
             changed = odom.changed() => {
                 if changed.is_err() { break; }
-                let o = odom.borrow_and_update().clone();
+                let o = *odom.borrow_and_update();
                 let t = truth.state();
                 rec.truth(t.sim_time, t.truth);
                 let ev = DeviceEvent::Odometry { device: "base".into(), t: o.time, pose: o.pose, v: o.v, w: o.w };
