@@ -607,17 +607,17 @@ fn validate(obs: &BeaconObservation) -> Result<(), InvalidObservation> {
 }
 
 /// `P[i][j] += Σₐ (G[i][a]·G[j][a] − (K[i][a]·M[j][a] + M[i][a]·K[j][a]))` over all i, j: the
-/// expanded Joseph correction. Each term is symmetric in (i, j) bit for bit.
+/// expanded Joseph correction. Each term is symmetric in (i, j) bit for bit. Works on the
+/// column-major storage directly (contiguous columns, no bounds checks in the inner loop).
 fn joseph_correction(p: &mut DMatrix<f64>, k: &DMatrix<f64>, m: &DMatrix<f64>, g: &DMatrix<f64>) {
     let n = p.nrows();
-    let cols = k.ncols();
-    for a in 0..cols {
-        let (ka, ma, ga) = (k.column(a), m.column(a), g.column(a));
-        for (j, mut pcol) in p.column_iter_mut().enumerate().take(n) {
-            let (kj, mj, gj) = (ka[j], ma[j], ga[j]);
-            for (((pij, ki), mi), gi) in
-                pcol.iter_mut().zip(ka.iter()).zip(ma.iter()).zip(ga.iter())
-            {
+    if n == 0 {
+        return;
+    }
+    let (ks, ms, gs) = (k.as_slice(), m.as_slice(), g.as_slice());
+    for ((ka, ma), ga) in ks.chunks_exact(n).zip(ms.chunks_exact(n)).zip(gs.chunks_exact(n)) {
+        for (((pcol, kj), mj), gj) in p.as_mut_slice().chunks_exact_mut(n).zip(ka).zip(ma).zip(ga) {
+            for (((pij, ki), mi), gi) in pcol.iter_mut().zip(ka).zip(ma).zip(ga) {
                 *pij += gi * gj - (ki * mj + mi * kj);
             }
         }
@@ -626,11 +626,13 @@ fn joseph_correction(p: &mut DMatrix<f64>, k: &DMatrix<f64>, m: &DMatrix<f64>, g
 
 /// `P[i][j] −= Σₐ W[i][a]·W[j][a]`.
 fn downdate(p: &mut DMatrix<f64>, w: &DMatrix<f64>) {
-    for a in 0..w.ncols() {
-        let wa = w.column(a);
-        for (j, mut pcol) in p.column_iter_mut().enumerate() {
-            let wj = wa[j];
-            for (pij, wi) in pcol.iter_mut().zip(wa.iter()) {
+    let n = p.nrows();
+    if n == 0 {
+        return;
+    }
+    for wa in w.as_slice().chunks_exact(n) {
+        for (pcol, wj) in p.as_mut_slice().chunks_exact_mut(n).zip(wa) {
+            for (pij, wi) in pcol.iter_mut().zip(wa) {
                 *pij -= wi * wj;
             }
         }
