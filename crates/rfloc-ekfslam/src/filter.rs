@@ -615,7 +615,11 @@ fn joseph_correction(p: &mut DMatrix<f64>, k: &DMatrix<f64>, m: &DMatrix<f64>, g
         return;
     }
     let (ks, ms, gs) = (k.as_slice(), m.as_slice(), g.as_slice());
-    for ((ka, ma), ga) in ks.chunks_exact(n).zip(ms.chunks_exact(n)).zip(gs.chunks_exact(n)) {
+    for ((ka, ma), ga) in ks
+        .chunks_exact(n)
+        .zip(ms.chunks_exact(n))
+        .zip(gs.chunks_exact(n))
+    {
         for (((pcol, kj), mj), gj) in p.as_mut_slice().chunks_exact_mut(n).zip(ka).zip(ma).zip(ga) {
             for (((pij, ki), mi), gi) in pcol.iter_mut().zip(ka).zip(ma).zip(ga) {
                 *pij += gi * gj - (ki * mj + mi * kj);
