@@ -527,7 +527,7 @@ impl InitialPoseSolver {
         let (mean, cov_fine) = moments(&fine, best.2, (fxy, fxy, fh))
             .ok_or_else(|| InitError::InvalidConfig("degenerate fine posterior".into()))?;
         // Coarse (tempered) posterior: how much mass lies outside the fine window?
-        let (cmean, cov_coarse) =
+        let (_, cov_coarse) =
             moments(&coarse, mean.z, (c.coarse_step_m, c.coarse_step_m, hstep))
                 .ok_or_else(|| InitError::InvalidConfig("degenerate coarse posterior".into()))?;
         let lmax = best.3;
@@ -547,7 +547,6 @@ impl InitialPoseSolver {
         } else {
             1.0
         };
-        let _ = cmean;
         let covariance = if outside_fraction > 0.05 {
             cov_coarse
         } else {
