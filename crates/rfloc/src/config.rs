@@ -111,8 +111,6 @@ fn default_silence() -> f64 {
     2.0
 }
 
-// Validated now; read by the device task / pipeline once it is wired into `rfloc run`.
-#[allow(dead_code)]
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AlienSettings {
@@ -375,7 +373,6 @@ impl Default for LogConfig {
 #[serde(deny_unknown_fields)]
 pub struct StateConfig {
     /// Folder for learned maps and persisted state (systemd `StateDirectory=`).
-    #[allow(dead_code)] // read by the UHF snapshot pipeline once it is wired into `rfloc run`
     pub dir: Option<PathBuf>,
     /// Folder to record captures of every device link into (`record` sets it too).
     pub capture_dir: Option<PathBuf>,

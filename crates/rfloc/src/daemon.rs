@@ -27,6 +27,8 @@ use crate::server::{bind_unix, PoseHub};
 pub struct RunOptions {
     pub stdout: bool,
     pub capture_dir: Option<PathBuf>,
+    /// Folder of the robot file.
+    pub config_dir: Option<PathBuf>,
 }
 
 /// Everything a device task needs from the daemon.
@@ -37,6 +39,8 @@ pub struct DeviceContext {
     pub stop: CancellationToken,
     pub clock: SharedClock,
     pub capture_dir: Option<PathBuf>,
+    /// Folder of the robot file (credential files may be given relative to it).
+    pub config_dir: Option<PathBuf>,
     /// Simulated seconds per wall second (1 on a real robot).
     pub time_scale: f64,
 }
@@ -160,6 +164,7 @@ pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
             stop: stop.clone(),
             clock: Arc::clone(&clock),
             capture_dir: capture_dir.clone(),
+            config_dir: opts.config_dir.clone(),
             time_scale,
         };
         let span =
@@ -185,7 +190,7 @@ pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
         child_frame_id: cfg.robot.child_frame_id.clone(),
         precision: cfg.pose.precision,
     };
-    let mut estimator = pipeline::build(&cfg.estimator);
+    let mut estimator = pipeline::build(&cfg.estimator, cfg.state.dir.as_deref());
     tracing::info!(pipeline = estimator.name(), "estimator ready");
     let stale_after: HashMap<String, Duration> = cfg
         .devices

@@ -25,6 +25,12 @@ pub enum DeviceEvent {
         rssi: u8,
         rssi_second: u8,
     },
+    /// A UHF snapshot: tag ID (hex EPC) → RSS, averaged over the configured number of reads.
+    UhfSnapshot {
+        device: String,
+        t: f64,
+        tags: Vec<(String, f64)>,
+    },
     /// A marker from a capture or a motion script, e.g. `stop 3 heading_deg=135`.
     Mark {
         device: String,
@@ -47,6 +53,7 @@ impl DeviceEvent {
         match self {
             DeviceEvent::Odometry { device, .. }
             | DeviceEvent::HfTag { device, .. }
+            | DeviceEvent::UhfSnapshot { device, .. }
             | DeviceEvent::Mark { device, .. }
             | DeviceEvent::Status { device, .. } => device,
         }

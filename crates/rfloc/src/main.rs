@@ -167,6 +167,9 @@ fn main() -> ExitCode {
             Err(code) => code,
         },
         Command::Run { config, stdout } => {
+            let config_dir = config
+                .as_ref()
+                .and_then(|p| p.parent().map(std::path::Path::to_path_buf));
             let (cfg, stdout) = match config {
                 Some(path) => match load_config(&path) {
                     Ok(c) => (c, stdout),
@@ -189,10 +192,12 @@ fn main() -> ExitCode {
                 daemon::RunOptions {
                     stdout,
                     capture_dir: None,
+                    config_dir,
                 },
             ))
         }
         Command::Record { config, out } => {
+            let config_dir = config.parent().map(std::path::Path::to_path_buf);
             let cfg = match load_config(&config) {
                 Ok(c) => c,
                 Err(code) => return code,
@@ -203,6 +208,7 @@ fn main() -> ExitCode {
                 daemon::RunOptions {
                     stdout: false,
                     capture_dir: Some(out),
+                    config_dir,
                 },
             ))
         }

@@ -108,7 +108,7 @@ pub async fn replay_lines(
         }
         (None, None) => EstimatorConfig::Odometry,
     };
-    let mut p = pipeline::build(&estimator);
+    let mut p = pipeline::build(&estimator, cfg.and_then(|c| c.state.dir.as_deref()));
     let fmt = PoseFormat {
         frame_id: cfg.map_or_else(|| "map".into(), |c| c.robot.frame_id.clone()),
         child_frame_id: cfg.map_or_else(|| "base_link".into(), |c| c.robot.child_frame_id.clone()),
@@ -132,6 +132,7 @@ fn event_time(e: &DeviceEvent) -> f64 {
     match e {
         DeviceEvent::Odometry { t, .. }
         | DeviceEvent::HfTag { t, .. }
+        | DeviceEvent::UhfSnapshot { t, .. }
         | DeviceEvent::Mark { t, .. } => *t,
         DeviceEvent::Status { .. } => 0.0,
     }

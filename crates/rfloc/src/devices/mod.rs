@@ -10,6 +10,7 @@ use crate::config::DriverConfig;
 use crate::daemon::DeviceContext;
 use crate::message::DeviceState;
 
+mod alien;
 mod aria;
 mod kts;
 
@@ -27,6 +28,7 @@ pub fn spawn(ctx: DeviceContext, span: tracing::Span) -> (JoinHandle<()>, Option
             )
         }
         DriverConfig::Kts(s) => (tokio::spawn(kts::run(ctx, s).instrument(span)), None),
+        DriverConfig::Alien(s) => (tokio::spawn(alien::run(ctx, s).instrument(span)), None),
         other => {
             let kind = other.kind();
             (

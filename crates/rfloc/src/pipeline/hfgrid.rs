@@ -265,7 +265,7 @@ impl HfGridPipeline {
                 }
                 None
             }
-            DeviceEvent::Status { .. } => None,
+            DeviceEvent::Status { .. } | DeviceEvent::UhfSnapshot { .. } => None,
         }
     }
 }
@@ -316,7 +316,9 @@ impl Pipeline for HfGridPipeline {
                     tracker.update(&[reading]);
                     Some(Self::tracking_estimate(tracker, *t))
                 }
-                DeviceEvent::Mark { .. } | DeviceEvent::Status { .. } => {
+                DeviceEvent::Mark { .. }
+                | DeviceEvent::Status { .. }
+                | DeviceEvent::UhfSnapshot { .. } => {
                     let _ = time;
                     None
                 }

@@ -7,9 +7,11 @@ use crate::events::DeviceEvent;
 
 mod hfgrid;
 mod odometry;
+mod snapshot;
 
 pub use hfgrid::HfGridPipeline;
 pub use odometry::OdometryPipeline;
+pub use snapshot::SnapshotPipeline;
 
 /// A pose estimator fed by device events.
 pub trait Pipeline: Send {
@@ -21,11 +23,12 @@ pub trait Pipeline: Send {
 
 /// Builds the pipeline a configuration asks for.
 #[must_use]
-pub fn build(config: &EstimatorConfig) -> Box<dyn Pipeline> {
+pub fn build(config: &EstimatorConfig, state_dir: Option<&std::path::Path>) -> Box<dyn Pipeline> {
     match config {
         EstimatorConfig::Odometry => Box::new(OdometryPipeline::default()),
         EstimatorConfig::Hfgrid(s) => Box::new(HfGridPipeline::new(s)),
-        EstimatorConfig::Ekfslam(_) | EstimatorConfig::Snapshot(_) => Box::new(Unavailable {
+        EstimatorConfig::Snapshot(s) => Box::new(SnapshotPipeline::new(s, state_dir)),
+        EstimatorConfig::Ekfslam(_) => Box::new(Unavailable {
             name: config.name(),
             warned: false,
         }),
@@ -37,7 +40,7 @@ pub fn build(config: &EstimatorConfig) -> Box<dyn Pipeline> {
 pub fn is_wired(config: &EstimatorConfig) -> bool {
     matches!(
         config,
-        EstimatorConfig::Odometry | EstimatorConfig::Hfgrid(_)
+        EstimatorConfig::Odometry | EstimatorConfig::Hfgrid(_) | EstimatorConfig::Snapshot(_)
     )
 }
 
