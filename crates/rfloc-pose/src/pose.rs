@@ -15,7 +15,11 @@ pub struct Pose2 {
 impl Pose2 {
     #[must_use]
     pub fn new(x: f64, y: f64, theta: f64) -> Self {
-        Self { x, y, theta: wrap_angle(theta) }
+        Self {
+            x,
+            y,
+            theta: wrap_angle(theta),
+        }
     }
 
     /// Composition `self ⊕ delta`, with `delta` expressed in this pose's frame.
