@@ -38,7 +38,7 @@ use rfloc_ekfslam::{
     BeaconObservation, EkfSlam, EkfSlamConfig, ObservationOutcome, PathLoss, WaypointController,
     WaypointControllerConfig,
 };
-use rfloc_pose::Pose2;
+use rfloc_pose::{angle_diff, Pose2};
 use rfloc_sim::geometry::Point;
 use rfloc_sim::recorder::TrialRecorder;
 use rfloc_sim::{Scenario, SensorSuite};
@@ -191,6 +191,11 @@ struct Mission {
     base_reconnects: u64,
     observations: usize,
     rejected: usize,
+    /// Sum of the normalised innovations squared of applied updates, and their degrees of
+    /// freedom (their ratio is 1 for a consistent filter).
+    nis_sum: f64,
+    nis_dof: usize,
+    odometry_heading_error: Rms,
 }
 
 impl Mission {
@@ -283,6 +288,9 @@ impl Mission {
             base_reconnects: 0,
             observations: 0,
             rejected: 0,
+            nis_sum: 0.0,
+            nis_dof: 0,
+            odometry_heading_error: Rms::default(),
         })
     }
 
@@ -293,6 +301,8 @@ impl Mission {
         self.rec.estimate(self.t, est);
         self.odometry_error
             .add(self.dead_reckoning.distance(&truth));
+        self.odometry_heading_error
+            .add(angle_diff(self.dead_reckoning.theta, truth.theta));
         for (id, p) in &self.beacons {
             if let Some(b) = self.ekf.beacon(*id) {
                 let e = (b.position.x - p.x).hypot(b.position.y - p.y);
@@ -445,10 +455,16 @@ impl Mission {
             .collect();
         let outcomes = self.ekf.update(&obs);
         self.observations += obs.len();
-        self.rejected += outcomes
-            .iter()
-            .filter(|o| matches!(o, ObservationOutcome::Rejected { .. }))
-            .count();
+        for o in &outcomes {
+            match o {
+                ObservationOutcome::Rejected { .. } => self.rejected += 1,
+                ObservationOutcome::Updated { nis, dof } => {
+                    self.nis_sum += nis;
+                    self.nis_dof += dof;
+                }
+                _ => {}
+            }
+        }
         tracing::debug!(
             sweep = self.sweeps,
             heard = result.report.beacons.len(),
@@ -476,6 +492,13 @@ impl Mission {
         }
         if let Some(v) = self.odometry_error.value() {
             self.rec.metric("odometry_rmse_m", v);
+        }
+        if let Some(v) = self.odometry_heading_error.value() {
+            self.rec.metric("odometry_rmse_theta_rad", v);
+        }
+        if self.nis_dof > 0 {
+            self.rec
+                .metric("nis_per_dof", self.nis_sum / self.nis_dof as f64);
         }
         self.rec
             .metric("beacons_mapped", self.ekf.beacon_count() as f64);
