@@ -58,7 +58,7 @@ use slip::{wheel_travel, OdometrySlip};
 use truth_log::{TruthLog, TruthTick};
 
 /// Driving time between two sweeps, simulated seconds.
-pub const SWEEP_EVERY_S: f64 = 4.0;
+pub const SWEEP_EVERY_S: f64 = 3.0;
 /// Mission time one sweep counts for (40 stops × 50 ms), seconds.
 pub const SWEEP_SECONDS: f64 = 2.0;
 /// Wheel slip σ (relative, per 10 ms substep) when the scenario sets no `drive.slip_sigma`.
