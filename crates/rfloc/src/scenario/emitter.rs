@@ -94,6 +94,7 @@ pub async fn run_trial(
     );
     rec.metric("astar_plans", main.plans as f64);
     rec.metric("bumper_steps", main.bumper_steps as f64);
+    rec.metric("filter_restarts", main.filter_restarts as f64);
     // Reproducibility: all three are 0 when the run followed its simulated-time schedule.
     rec.metric(
         "late_control_steps",
