@@ -37,9 +37,9 @@ use rfloc_pose::Pose2;
 use rfloc_sim::recorder::TrialRecorder;
 use rfloc_sim::{Point, Scenario};
 use rfloc_snapshot::{
-    Action, ActionTable, ExplorationConfig, ExplorationInput, ExplorationPolicy, FilterConfig,
-    LearnConfig, NavCommand, NavReason, Navigator, NavigatorConfig, Observation, PlanConfig,
-    Snapshot, SnapshotDatabase, StateFilter, TagId,
+    Action, ActionTable, ClusterCount, ClusteringMethod, ExplorationConfig, ExplorationInput,
+    ExplorationPolicy, FilterConfig, LearnConfig, NavCommand, NavReason, Navigator,
+    NavigatorConfig, Observation, PlanConfig, Snapshot, SnapshotDatabase, StateFilter, TagId,
 };
 
 use super::SimOptions;
@@ -64,8 +64,10 @@ pub const STALL_WINDOW: usize = 60;
 pub const STALL_GAIN_M: f64 = 0.1;
 /// Relative σ of wheel slip on the true motion (odometry does not see it).
 pub const WHEEL_SLIP: f64 = 0.02;
-/// Rotation steps taken after a wheel stall (about 90° with Table 4's rotations).
-pub const STALL_TURN_STEPS: usize = 10;
+/// Rotation steps taken after a wheel stall (about 160° with Table 4's rotations).
+pub const STALL_TURN_STEPS: usize = 18;
+/// States of the planning database as a fraction of the exploration snapshots (k-medoids).
+pub const NAV_STATE_FRACTION: f64 = 0.25;
 /// The snapshot trials run at least this many simulated seconds per wall second.
 pub const MIN_TIME_SCALE: f64 = 100.0;
 
@@ -113,6 +115,21 @@ fn reload_difference(saved: &SnapshotDatabase, loaded: &SnapshotDatabase) -> any
     }
     anyhow::ensure!(worst < 1e-6, "the reloaded database differs by {worst}");
     Ok(worst)
+}
+
+/// Learns on the blocking pool so that the drivers' tasks keep running meanwhile; hands the
+/// observations back.
+async fn learn_blocking(
+    observations: Vec<Observation>,
+    config: LearnConfig,
+) -> anyhow::Result<(Vec<Observation>, SnapshotDatabase)> {
+    tokio::task::spawn_blocking(move || {
+        let db = SnapshotDatabase::learn(&observations, &config);
+        (observations, db)
+    })
+    .await
+    .map_err(|e| anyhow::anyhow!("learning task failed: {e}"))
+    .and_then(|(o, db)| Ok((o, db?)))
 }
 
 /// Per-trial error accumulator.
@@ -226,7 +243,9 @@ pub async fn run_trial(
 
     // 2. Learning, atomic save, reload.
     let config = LearnConfig::default();
-    let learned = SnapshotDatabase::learn(&by_truth, &config).context("learning the database")?;
+    let (by_truth, learned) = learn_blocking(by_truth, config)
+        .await
+        .context("learning the database")?;
     let db_path = dir.join("snapshot-db.json");
     learned
         .save(&db_path)
@@ -242,16 +261,35 @@ pub async fn run_trial(
             ..o.clone()
         })
         .collect();
-    let odom_db = SnapshotDatabase::learn(&by_odom, &config).context("learning (odometry)")?;
+    let (_, odom_db) = learn_blocking(by_odom, config)
+        .await
+        .context("learning (odometry)")?;
     odom_db
         .save(&dir.join("snapshot-db-odometry.json"))
         .context("saving the odometry database")?;
 
+    // The coarse database the navigation plans on (more transitions per state and action).
+    let nav_config = LearnConfig {
+        clustering: ClusteringMethod::KMedoids {
+            k: ClusterCount::Fraction(NAV_STATE_FRACTION),
+            max_iter: 100,
+            seed: 1,
+        },
+        ..LearnConfig::default()
+    };
+    let (_, nav_db) = learn_blocking(by_truth, nav_config)
+        .await
+        .context("learning (plan)")?;
+    nav_db
+        .save(&dir.join("snapshot-db-plan.json"))
+        .context("saving the planning database")?;
+
     // 3. Navigation.
-    let goal_state = goal_state(&db, &goal)?;
-    let plan = db
+    let goal_state = goal_state(&nav_db, &goal)?;
+    let plan = nav_db
         .plan(goal_state, &PlanConfig::default())
         .context("planning")?;
+    let mut nav_filter = StateFilter::new(&nav_db, FilterConfig::default());
     let mut navigator = Navigator::new(NavigatorConfig::default());
     let mut filter = StateFilter::new(&db, FilterConfig::default());
     let mut odom_filter = StateFilter::new(&odom_db, FilterConfig::default());
@@ -263,13 +301,16 @@ pub async fn run_trial(
     let mut declared = None::<&'static str>;
     let (mut escapes, mut reversals, mut turnarounds) = (0u32, 0u32, 0u32);
     let mut steps_taken = 0usize;
+    let mut ambiguous_goal = 0u32;
     let start_distance = dist(&rig.truth(), &goal_pose);
     for step in 0..=nav_steps {
         let snapshot: Snapshot = rig.read_snapshot().await?;
         if let Some(a) = prev {
             filter.predict(&db, a);
             odom_filter.predict(&odom_db, a);
+            nav_filter.predict(&nav_db, a);
         }
+        nav_filter.update(&nav_db, &snapshot);
         filter.update(&db, &snapshot);
         odom_filter.update(&odom_db, &snapshot);
         let t = step as f64;
@@ -291,13 +332,26 @@ pub async fn run_trial(
         if step == nav_steps {
             break;
         }
-        let state = filter.map_state();
-        match navigator.decide(&plan, state, Some(db.no_tags_state()), &mut rng) {
-            NavCommand::Arrived => {
+        let state = nav_filter.map_state();
+        match navigator.decide(&plan, state, Some(nav_db.no_tags_state()), &mut rng) {
+            NavCommand::Arrived if dist(&est.pose, &goal_pose) <= tolerance => {
                 declared = Some("goal state");
                 break;
             }
-            NavCommand::Act { action, reason } => {
+            command => {
+                // In the goal state while the position estimate disagrees: the state is
+                // ambiguous, so move on (an exploration step) and localise again.
+                let (action, reason) = match command {
+                    NavCommand::Act { action, reason } => (action, reason),
+                    NavCommand::Arrived => {
+                        ambiguous_goal += 1;
+                        let input = ExplorationInput {
+                            tags_seen: snapshot.len(),
+                            new_tags: 0,
+                        };
+                        (explorer.step(input, &mut rng), NavReason::Explore)
+                    }
+                };
                 let action = reflex.override_action(action);
                 match reason {
                     NavReason::CycleEscape | NavReason::Explore => escapes += 1,
@@ -321,7 +375,8 @@ pub async fn run_trial(
     rec.set_success(reached);
     rec.marks.push((
         "goal state".into(),
-        db.states
+        nav_db
+            .states
             .get(goal_state)
             .map_or(goal, |s| Point::new(s.pose.x, s.pose.y)),
     ));
@@ -345,9 +400,11 @@ pub async fn run_trial(
     }
     rec.metric("odometry_drift_after_exploration_m", odom_drift);
     rec.metric("states", db.states.len() as f64);
+    rec.metric("plan_states", nav_db.states.len() as f64);
     rec.metric("database_reload_max_difference", reload_diff);
     rec.metric("empty_exploration_snapshots", empty as f64);
     rec.metric("cycle_escapes", f64::from(escapes));
+    rec.metric("ambiguous_goal_steps", f64::from(ambiguous_goal));
     rec.metric("reversals_avoided", f64::from(reversals));
     rec.metric("turn_arounds", f64::from(turnarounds));
     rec.metric("late_stops", counters.late_stops as f64);
@@ -357,6 +414,17 @@ pub async fn run_trial(
     rec.metric("tag_list_reads", counters.reads as f64);
     rec.metric("sim_time_s", sim_time);
     rec.metric("wall_time_s", wall.elapsed().as_secs_f64());
+    rec.metric(
+        "stopped_by_estimate_rate",
+        flag(declared == Some("estimate")),
+    );
+    let lines: String = rec
+        .extra
+        .iter()
+        .map(|(k, v)| format!("{k},{v}\n"))
+        .collect();
+    std::fs::write(dir.join("metrics.csv"), format!("metric,value\n{lines}"))
+        .context("writing metrics.csv")?;
     tracing::info!(
         trial,
         reached,

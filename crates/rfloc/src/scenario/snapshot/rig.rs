@@ -29,6 +29,8 @@ use crate::sim::pty_link;
 
 /// Wall-clock limit for any single wait on the emulated robot.
 const WAIT_LIMIT: Duration = Duration::from_secs(10);
+/// Wall-clock floor of the Pioneer driver's link timeout.
+const LINK_TIMEOUT_FLOOR: Duration = Duration::from_secs(10);
 /// The robot counts as stopped below these speeds (m/s, rad/s).
 const STOPPED_V: f64 = 1e-3;
 const STOPPED_W: f64 = 1e-3;
@@ -204,16 +206,17 @@ impl SnapshotRig {
             &note,
         )?;
         let base_io = Recorder::new(open(&robot_link).await?, base_sink.clone());
-        let base = AriaClient::from_stream(
-            base_io,
-            ClientConfig {
-                clock: Some(clock.clone()),
-                ..ClientConfig::default()
-            }
-            .scaled(spec.time_scale),
-        )
-        .await
-        .context("Pioneer handshake")?;
+        let mut base_config = ClientConfig {
+            clock: Some(clock.clone()),
+            ..ClientConfig::default()
+        }
+        .scaled(spec.time_scale);
+        // Scaled link timeouts are a few milliseconds of wall time; learning between the phases
+        // may hold a core for longer than that.
+        base_config.link_timeout = base_config.link_timeout.max(LINK_TIMEOUT_FLOOR);
+        let base = AriaClient::from_stream(base_io, base_config)
+            .await
+            .context("Pioneer handshake")?;
 
         let reader_sink = sink(
             spec.dir,
