@@ -104,7 +104,12 @@ async fn drive_side(
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn square_closes_on_emulator_truth() {
-    let (host, emu, task) = spawn_emulator(emulator_config());
+    // This test is about odometry, not the watchdog (tested below): a long robot watchdog keeps
+    // a test process starved of CPU on a loaded machine from stopping the robot mid-side.
+    let (host, emu, task) = spawn_emulator(EmulatorConfig {
+        watchdog: Duration::from_secs(20),
+        ..emulator_config()
+    });
     let client = AriaClient::from_stream(host, client_config())
         .await
         .unwrap();
