@@ -200,12 +200,6 @@ impl EmitterHoming {
         Point2::new(p.x.clamp(x0, x1), p.y.clamp(y0, y1))
     }
 
-    /// The current target estimate.
-    #[must_use]
-    pub fn target(&self) -> Option<Point2> {
-        self.target
-    }
-
     /// RSS readings the pipeline could not use.
     #[must_use]
     pub fn rejected_rss(&self) -> u64 {
