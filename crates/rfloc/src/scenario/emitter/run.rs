@@ -1,12 +1,20 @@
 //! One closed-loop run of the emitter-homing system against an emulated Pioneer on a pty.
 //!
 //! Timing: the control loop runs on the emulator's SIPs. SIP number `s` came from emulator tick
-//! `k0 + s − 1`; every `CONTROL_TICKS` ticks the loop reads the sensors at the true pose of
-//! that tick (from [`TruthLog`]), updates the filter and the map and asks the navigator for a
-//! command. The command is sent at the *next* control tick, right after that tick's SIP
-//! arrives, so its landing tick does not depend on how long the computation took: a fixed
-//! actuation latency of one control period (0.2 s simulated) buys reproducible runs. A control
-//! step that is still computing when the next one is due is counted (`late_control_steps`).
+//! `k0 + s − 1`. Control steps fall on a fixed grid of ticks (every `CONTROL_TICKS` ticks from
+//! `k0 + SETTLE_TICKS`); each reads the sensors at the true pose of its tick (from
+//! [`TruthLog`]), updates the filter and the map and asks the navigator for a command. The
+//! command is sent at the *next* control tick, right after that tick's SIP arrived: a fixed
+//! actuation latency of one control period (0.2 s simulated).
+//!
+//! Reproducibility: the emulator runs on its own thread behind the tick gate of [`TruthLog`],
+//! so it cannot start tick `k + 1` before the loop has finished with SIP `k`; a slow control
+//! step delays simulated time instead of the robot driving on. One race is left that only the
+//! emulator could close: when its next tick is already due as a command's bytes arrive, its
+//! `select!` may take the tick first and the command lands one tick late. The run counts such
+//! commands (`late_commands`, checked by waiting for the emulator's command counter), as well
+//! as missed control ticks and gate time-outs; with all three at 0 a rerun gives identical
+//! numbers.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
