@@ -507,6 +507,11 @@ impl Mission {
         self.rec
             .metric("base_reconnects", self.base_reconnects as f64);
         self.rec.metric("observations", self.observations as f64);
+        let probe = self.runner.probe_mut();
+        self.rec
+            .metric("xbee_dropped_bytes", probe.dropped_bytes() as f64);
+        self.rec
+            .metric("xbee_rejected_records", probe.rejected_records as f64);
         self.rec.metric("gate_rejections", self.rejected as f64);
         self.rec.metric("mission_time_s", self.t);
         self.rec.metric("slip_sigma", self.slip);

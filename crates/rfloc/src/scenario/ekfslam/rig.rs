@@ -13,7 +13,6 @@ use rfloc_aria::{
     RobotEmulator, WheelSlip,
 };
 use rfloc_capture::Header;
-use rfloc_pose::Pose2;
 use rfloc_sim::{Scenario, SensorSuite};
 use rfloc_stepper::AngleProbe;
 use rfloc_transport::{
@@ -234,12 +233,6 @@ impl Rig {
             _slaves: slaves,
             sinks: vec![base_sink, xbee_sink],
         })
-    }
-
-    /// The robot's true pose.
-    #[must_use]
-    pub fn truth(&self) -> Pose2 {
-        self.robot.truth()
     }
 
     /// Hands the XBee driver over (to the bearing scan); `None` the second time.

@@ -88,12 +88,6 @@ impl TruthLog {
         }
         best.map(|(_, t)| t)
     }
-
-    /// The newest tick.
-    #[must_use]
-    pub fn latest(&self) -> Option<TruthTick> {
-        self.ticks.lock().ok()?.back().copied()
-    }
 }
 
 impl Drop for TruthLog {
