@@ -230,7 +230,7 @@ pub async fn run_trial(
         });
         odom_poses.push(rig.odometry_pose());
         if let Some(a) = action {
-            let cmd = act.to_drive(act.noisy(a, &mut rng));
+            let cmd = act.drive_command(act.noisy(a, &mut rng));
             let stalled = rig.drive(cmd, DRIVE_DURATION_S).await?;
             reflex.after_action(stalled, &mut rng);
         }
@@ -359,7 +359,7 @@ pub async fn run_trial(
                     NavReason::TurnAround => turnarounds += 1,
                     NavReason::Policy => {}
                 }
-                let cmd = act.to_drive(act.noisy(action, &mut rng));
+                let cmd = act.drive_command(act.noisy(action, &mut rng));
                 let stalled = rig.drive(cmd, DRIVE_DURATION_S).await?;
                 reflex.after_action(stalled, &mut rng);
                 prev = Some(action);
@@ -410,6 +410,7 @@ pub async fn run_trial(
     rec.metric("late_stops", counters.late_stops as f64);
     rec.metric("unsettled_stops", counters.unsettled as f64);
     rec.metric("wheel_stall_actions", counters.stalls as f64);
+    rec.metric("wall_turns", reflex.triggered() as f64);
     rec.metric("bad_epcs", counters.bad_epcs as f64);
     rec.metric("tag_list_reads", counters.reads as f64);
     rec.metric("sim_time_s", sim_time);

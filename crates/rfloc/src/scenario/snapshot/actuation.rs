@@ -50,7 +50,7 @@ impl Actuation {
 
     /// The Pioneer command that drives `seed_command`'s displacement in `drive_duration_s`.
     #[must_use]
-    pub fn to_drive(&self, seed_command: MotionCommand) -> MotionCommand {
+    pub fn drive_command(&self, seed_command: MotionCommand) -> MotionCommand {
         let k = if self.drive_duration_s > 0.0 {
             self.action_duration_s / self.drive_duration_s
         } else {
@@ -87,7 +87,7 @@ mod tests {
         let mut rng = ChaCha8Rng::seed_from_u64(1);
         let seed_cmd = a.noisy(Action::ArcLeft, &mut rng);
         assert!((seed_cmd.v - 2.5).abs() < 1e-12);
-        let d = a.to_drive(seed_cmd);
+        let d = a.drive_command(seed_cmd);
         // 0.25 m and π/20 rad either way.
         assert!((d.v * 0.5 - 0.25).abs() < 1e-12);
         assert!((d.omega * 0.5 - std::f64::consts::PI / 20.0).abs() < 1e-12);
