@@ -2,7 +2,7 @@
 //! 17): the true distance to the goal stops improving for a long stretch of navigation steps.
 
 /// Counts stretches of `window` steps in which the true distance to the goal never came
-/// `min_gain` closer than the best distance so far.
+/// `min_gain` closer than the reference distance (the distance at the last such gain).
 #[derive(Debug, Clone, PartialEq)]
 pub struct StallDetector {
     window: usize,
@@ -32,7 +32,6 @@ impl StallDetector {
             self.since_best = 0;
             return false;
         }
-        self.best = self.best.min(distance);
         self.since_best += 1;
         if self.since_best >= self.window {
             self.stalls += 1;
