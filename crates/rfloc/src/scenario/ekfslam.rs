@@ -15,15 +15,30 @@
 //!   standstill), the `ScanRunner` turns the simulated stepper through 40 stops of 9° with one
 //!   `ND` round per stop, and each beacon's peak RSSI and fitted bearing update the filter
 //!   (known association by 64-bit address);
-//! - truth and estimate are recorded at every SIP on the trial's *mission clock*: simulated
-//!   driving time plus a fixed [`SWEEP_SECONDS`] per sweep. The wall time a sweep's pty round
-//!   trips take (which varies from run to run) therefore never enters the numbers.
+//! - truth and estimate are recorded at every SIP on the trial's *mission clock*: SIP periods
+//!   plus a fixed [`SWEEP_SECONDS`] per sweep (a sample without wheel motion counts one
+//!   period). The wall time a sweep's pty round trips take, which varies from run to run,
+//!   never enters the numbers. The trial ends at the scenario's `duration_s` of mission time
+//!   or when the last waypoint is reached (`successes`).
 //!
-//! The seed's Table 3.1 motion noise alone makes dead reckoning better than the seed's
-//! EKF-SLAM (see the rfloc-sim README), so the emulated base slips: each wheel's ground speed
+//! Odometry error. The seed's Table 3.1 motion noise alone makes dead reckoning better than
+//! the seed's EKF-SLAM (see the rfloc-sim README), so the wheels slip: each wheel's travel
 //! gets a relative Gaussian error per 10 ms substep, σ = the scenario's `drive.slip_sigma`, or
-//! [`DEFAULT_SLIP_SIGMA`] when the scenario sets none. The odometry-only error is reported
-//! beside the filter's (`odometry_rmse_m`).
+//! [`DEFAULT_SLIP_SIGMA`] when the scenario sets none (the seed003 scenario files set none).
+//! It is applied to the odometry increments between the driver and the filter (`slip`), not
+//! by the emulator's own `WheelSlip`, whose draws depend on wall time (see `slip`). The filter
+//! is told the same error model (×2 variance). The odometry-only error is reported beside the
+//! filter's (`odometry_rmse_m`, `odometry_rmse_theta_rad`).
+//!
+//! Measurement model given to the filter: eq. 2.7 with the scenario's `P_ref` and η; the
+//! peak RSSI of each sweep as the range measurement with σ² = shadowing² + fast fading² of
+//! the scenario's XBee model (3.16 dB, Table 4.1's spread); the fitted bearing with the
+//! estimator's variance plus (3°)².
+//!
+//! Reproducibility. The emulators run on wall time (`--time-scale` simulated seconds per
+//! second). A trial is identical bit for bit when the loop answered every SIP before the next
+//! one; when it fell behind while driving (a loaded machine), one command met a later tick
+//! and the run diverges slightly. `late_sips` in the report counts these.
 
 use std::collections::BTreeMap;
 use std::path::Path;
