@@ -537,3 +537,41 @@ impl Mission {
         self.rec
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn odometry_covariance_is_the_slip_model_with_its_margin() {
+        let sigma = 0.05;
+        let mut slip = OdometrySlip::new(3, sigma, EMULATOR_TRACK_M, SUBSTEP_S);
+        let step = slip::arc(0.03, 0.02);
+        let n = 40_000;
+        let (mut sx, mut sth, mut sxth) = (0.0, 0.0, 0.0);
+        for _ in 0..n {
+            let d = slip.apply(&step, SIP_PERIOD_S);
+            let (ex, eth) = (d.x - step.x, d.theta - step.theta);
+            sx += ex * ex;
+            sth += eth * eth;
+            sxth += ex * eth;
+        }
+        let k = f64::from(n);
+        let cov = odometry_covariance(&step, SIP_PERIOD_S, sigma);
+        let ratio_x = cov[(0, 0)] / (sx / k);
+        let ratio_th = cov[(2, 2)] / (sth / k);
+        assert!(
+            (ratio_x / ODOMETRY_VARIANCE_MARGIN - 1.0).abs() < 0.05,
+            "{ratio_x}"
+        );
+        assert!(
+            (ratio_th / ODOMETRY_VARIANCE_MARGIN - 1.0).abs() < 0.05,
+            "{ratio_th}"
+        );
+        // Turning left loads the right wheel more: along and heading errors correlate.
+        assert!(cov[(0, 2)] > 0.0 && sxth > 0.0);
+        // No motion, no uncertainty beyond the floors.
+        let still = odometry_covariance(&Pose2::new(0.0, 0.0, 0.0), SIP_PERIOD_S, sigma);
+        assert!(still.iter().all(|v| v.abs() < 1e-9));
+    }
+}
