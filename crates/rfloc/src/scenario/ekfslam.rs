@@ -211,6 +211,13 @@ struct Mission {
     nis_sum: f64,
     nis_dof: usize,
     odometry_heading_error: Rms,
+    /// Sweep measurements against the truth: bearing error (deg) and its ratio to the σ
+    /// given to the filter; RSSI residual against eq. 2.7 (dB), its sum, and its ratio to σ.
+    bearing_error: Rms,
+    bearing_z: Rms,
+    rssi_residual: Rms,
+    rssi_residual_sum: f64,
+    rssi_z: Rms,
 }
 
 impl Mission {
@@ -306,6 +313,11 @@ impl Mission {
             nis_sum: 0.0,
             nis_dof: 0,
             odometry_heading_error: Rms::default(),
+            bearing_error: Rms::default(),
+            bearing_z: Rms::default(),
+            rssi_residual: Rms::default(),
+            rssi_residual_sum: 0.0,
+            rssi_z: Rms::default(),
         })
     }
 
@@ -410,7 +422,7 @@ impl Mission {
                     && ground.x.hypot(ground.y) < 5e-4
                     && ground.theta.abs() < 1e-3;
                 if still {
-                    self.sweep(o.pose.theta).await?;
+                    self.sweep(o.pose.theta, tick.truth).await?;
                     self.t += SWEEP_SECONDS;
                     self.record(tick.truth);
                     stopping = false;
@@ -442,8 +454,9 @@ impl Mission {
         Ok(())
     }
 
-    /// One reflector sweep at a standstill and the filter update from it.
-    async fn sweep(&mut self, heading: f64) -> anyhow::Result<()> {
+    /// One reflector sweep at a standstill and the filter update from it; `truth` (the pose
+    /// during the sweep) only scores the measurements.
+    async fn sweep(&mut self, heading: f64, truth: Pose2) -> anyhow::Result<()> {
         if let Ok(mut s) = self.sensors.lock() {
             s.begin_xbee_sweep();
         }
@@ -459,12 +472,23 @@ impl Mission {
             .iter()
             .filter_map(|(id, r)| {
                 let b = r.as_ref().ok()?;
+                let sigma_b = (b.bearing_variance_rad2 + BEARING_FLOOR_RAD2).sqrt();
+                if let Some((_, p)) = self.beacons.iter().find(|(a, _)| a == id) {
+                    let (dx, dy) = (p.x - truth.x, p.y - truth.y);
+                    let eb = angle_diff(b.bearing_rad, angle_diff(dy.atan2(dx), truth.theta));
+                    let er = b.peak_rssi_dbm - self.ekf.config().path_loss.rssi_at(dx.hypot(dy));
+                    self.bearing_error.add(eb.to_degrees());
+                    self.bearing_z.add(eb / sigma_b);
+                    self.rssi_residual.add(er);
+                    self.rssi_residual_sum += er;
+                    self.rssi_z.add(er / self.rssi_sigma_db);
+                }
                 Some(BeaconObservation::rssi_bearing(
                     *id,
                     b.peak_rssi_dbm,
                     b.bearing_rad,
                     self.rssi_sigma_db,
-                    (b.bearing_variance_rad2 + BEARING_FLOOR_RAD2).sqrt(),
+                    sigma_b,
                 ))
             })
             .collect();
@@ -514,6 +538,22 @@ impl Mission {
         if self.nis_dof > 0 {
             self.rec
                 .metric("nis_per_dof", self.nis_sum / self.nis_dof as f64);
+        }
+        for (name, rms) in [
+            ("bearing_error_rms_deg", self.bearing_error),
+            ("bearing_z_rms", self.bearing_z),
+            ("rssi_residual_rms_db", self.rssi_residual),
+            ("rssi_z_rms", self.rssi_z),
+        ] {
+            if let Some(v) = rms.value() {
+                self.rec.metric(name, v);
+            }
+        }
+        if self.rssi_residual.n > 0 {
+            self.rec.metric(
+                "rssi_residual_mean_db",
+                self.rssi_residual_sum / self.rssi_residual.n as f64,
+            );
         }
         self.rec
             .metric("beacons_mapped", self.ekf.beacon_count() as f64);

@@ -32,7 +32,20 @@ pub struct TruthTick {
 /// Recent emulator states, filled by a background task.
 pub struct TruthLog {
     ticks: Arc<Mutex<VecDeque<TruthTick>>>,
+    robot: EmulatorHandle,
     task: JoinHandle<()>,
+}
+
+/// Appends a state, replacing the last one when it is the same tick.
+fn push(q: &mut VecDeque<TruthTick>, s: TruthTick) {
+    match q.back_mut() {
+        Some(last) if last.sim_time == s.sim_time => *last = s,
+        Some(last) if last.sim_time > s.sim_time => {}
+        _ => q.push_back(s),
+    }
+    while q.len() > KEEP {
+        q.pop_front();
+    }
 }
 
 fn tick_of(s: &EmulatorState) -> TruthTick {
@@ -53,20 +66,18 @@ impl TruthLog {
             loop {
                 let s = tick_of(&rx.borrow_and_update());
                 if let Ok(mut q) = log.lock() {
-                    match q.back_mut() {
-                        Some(last) if last.sim_time == s.sim_time => *last = s,
-                        _ => q.push_back(s),
-                    }
-                    while q.len() > KEEP {
-                        q.pop_front();
-                    }
+                    push(&mut q, s);
                 }
                 if rx.changed().await.is_err() {
                     break;
                 }
             }
         });
-        TruthLog { ticks, task }
+        TruthLog {
+            ticks,
+            robot: robot.clone(),
+            task,
+        }
     }
 
     /// The tick whose odometry is closest to `odometry` (the pose a SIP reported; the right
@@ -74,7 +85,10 @@ impl TruthLog {
     /// among equals (a robot standing still); `None` before the first state.
     #[must_use]
     pub fn at_odometry(&self, odometry: &Pose2) -> Option<TruthTick> {
-        let q = self.ticks.lock().ok()?;
+        let mut q = self.ticks.lock().ok()?;
+        // The follower task may not have run yet (a loaded machine): the current state is
+        // always there.
+        push(&mut q, tick_of(&self.robot.state()));
         let gap = |t: &TruthTick| {
             t.odometry.distance(odometry)
                 + HEADING_WEIGHT_M * angle_diff(t.odometry.theta, odometry.theta).abs()
