@@ -33,15 +33,24 @@ use run::{capture_path, run_system, RunOutcome, RunSpec};
 /// Filter updates skipped before the estimate errors are averaged (the first second of data).
 const WARMUP_UPDATES: usize = 5;
 
-/// Mean of the filtered and raw emitter errors after the warm-up.
-fn error_means(out: &RunOutcome) -> Option<(f64, f64)> {
-    let f = out.filtered_errors.get(WARMUP_UPDATES..)?;
-    let r = out.raw_errors.get(WARMUP_UPDATES..)?;
-    if f.is_empty() || f.len() != r.len() {
-        return None;
+/// Mean of the filtered and raw emitter errors after the warm-up, over the updates that
+/// `keep` selects by their line-of-sight flag.
+fn error_means(out: &RunOutcome, keep: impl Fn(bool) -> bool) -> Option<(f64, f64)> {
+    let (mut f, mut r, mut n) = (0.0, 0.0, 0usize);
+    for ((fe, re), los) in out
+        .filtered_errors
+        .iter()
+        .zip(&out.raw_errors)
+        .zip(&out.line_of_sight)
+        .skip(WARMUP_UPDATES)
+    {
+        if keep(*los) {
+            f += fe;
+            r += re;
+            n += 1;
+        }
     }
-    let n = f.len() as f64;
-    Some((f.iter().sum::<f64>() / n, r.iter().sum::<f64>() / n))
+    (n > 0).then(|| (f / n as f64, r / n as f64))
 }
 
 /// Runs one trial.
@@ -73,11 +82,15 @@ pub async fn run_trial(
         rec.marks
             .push(("emitter estimate".to_string(), Point::new(e.x, e.y)));
     }
-    if let Some((filtered, raw)) = error_means(&main) {
-        rec.metric("emitter_error_m", filtered);
-        rec.metric("emitter_raw_error_m", raw);
-        if raw > 0.0 {
-            rec.metric("filter_error_ratio", filtered / raw);
+    // All updates, then only those with a clear line of sight (behind a wall the RSS range
+    // is biased several-fold and no filter can average that away).
+    for (suffix, keep) in [("", None), ("_los", Some(true))] {
+        if let Some((filtered, raw)) = error_means(&main, |los| keep.is_none_or(|k| k == los)) {
+            rec.metric(&format!("emitter_error{suffix}_m"), filtered);
+            rec.metric(&format!("emitter_raw_error{suffix}_m"), raw);
+            if raw > 0.0 {
+                rec.metric(&format!("filter_error_ratio{suffix}"), filtered / raw);
+            }
         }
     }
     let other_key = if full { "preliminary" } else { "full" };
@@ -125,7 +138,7 @@ pub async fn run_trial(
         fmt(&other),
         last.x,
         last.y,
-        error_means(&main).map_or_else(
+        error_means(&main, |_| true).map_or_else(
             || "—".to_string(),
             |(f, r)| format!("{f:.2} m / {r:.2} m")
         ),

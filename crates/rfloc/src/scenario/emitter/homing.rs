@@ -6,9 +6,10 @@
 use std::collections::VecDeque;
 
 use rfloc_emitter::{
-    differential_range_bearing, AntennaRss, Bumpers, DifferentialRssConfig, EmitterEstimate,
-    EmitterNavigator, EmitterParticleFilter, NavigationCommand, NavigatorConfig, NavigatorInput,
-    OccupancyGrid, OccupancyGridConfig, ParticleFilterConfig, Point2, ScanBeam,
+    differential_range_bearing, AntennaRss, Bumpers, CellClass, DifferentialRssConfig,
+    EmitterEstimate, EmitterNavigator, EmitterParticleFilter, GridCell, NavigationCommand,
+    NavigatorConfig, NavigatorInput, OccupancyGrid, OccupancyGridConfig, ParticleFilterConfig,
+    Point2, ScanBeam,
 };
 use rfloc_pose::Pose2;
 
@@ -33,6 +34,8 @@ pub struct EmitterHoming {
     config: HomingConfig,
     filter: EmitterParticleFilter,
     grid: OccupancyGrid,
+    /// The grid with every occupied cell grown by one cell, for the navigator.
+    planning_grid: OccupancyGrid,
     navigator: EmitterNavigator,
     scan: Vec<ScanBeam>,
     target: Option<Point2>,
@@ -61,6 +64,7 @@ impl EmitterHoming {
         Ok(Self {
             filter: EmitterParticleFilter::new(config.filter, start, config.seed)?,
             grid: OccupancyGrid::new(config.grid)?,
+            planning_grid: OccupancyGrid::new(config.grid)?,
             navigator: EmitterNavigator::new(config.navigator),
             scan: Vec::new(),
             target: None,
@@ -168,6 +172,7 @@ impl EmitterHoming {
     pub fn observe_scan(&mut self, sensor: &Pose2, beams: Vec<ScanBeam>) {
         if self.config.navigator.use_planner {
             self.grid.integrate_scan(sensor, &beams);
+            self.planning_grid = inflate(&self.grid);
         }
         self.scan = beams;
     }
@@ -182,7 +187,7 @@ impl EmitterHoming {
             time_s: t,
             pose,
             target,
-            grid: &self.grid,
+            grid: &self.planning_grid,
             scan: &self.scan,
             bumpers,
         })
@@ -211,4 +216,26 @@ impl EmitterHoming {
     pub fn plan_count(&self) -> u64 {
         self.navigator.plan_count()
     }
+}
+
+/// Configuration space for a round robot about one cell in radius: every cell next to an
+/// occupied one (8-neighbourhood) becomes occupied too. A* then keeps the robot's centre two
+/// cells from what the laser saw, beyond the 20 cm avoidance reflex, instead of planning paths
+/// that graze obstacles and trigger the reflex all the way along (the seed's neighbourhood
+/// cost sum alone keeps only one cell).
+fn inflate(grid: &OccupancyGrid) -> OccupancyGrid {
+    let mut out = grid.clone();
+    for iy in 0..grid.height() {
+        for ix in 0..grid.width() {
+            if grid.class(GridCell::new(ix, iy)) != CellClass::Occupied {
+                continue;
+            }
+            for ny in iy.saturating_sub(1)..=iy + 1 {
+                for nx in ix.saturating_sub(1)..=ix + 1 {
+                    out.mark_occupied(GridCell::new(nx, ny));
+                }
+            }
+        }
+    }
+    out
 }

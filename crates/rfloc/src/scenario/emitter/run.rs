@@ -3,17 +3,19 @@
 //! Timing: the control loop runs on the emulator's SIPs. SIP number `s` came from emulator tick
 //! `k0 + s − 1`. Control steps fall on a fixed grid of ticks (every `CONTROL_TICKS` ticks from
 //! `k0 + SETTLE_TICKS`); each reads the sensors at the true pose of its tick (from
-//! [`TruthLog`]), updates the filter and the map and asks the navigator for a command. The
-//! command is sent at the *next* control tick, right after that tick's SIP arrived: a fixed
-//! actuation latency of one control period (0.2 s simulated).
+//! [`TruthLog`]), updates the filter and the map and asks the navigator for a command. With the
+//! next SIP the command is sent while the emulator is held at the start of the tick after, and
+//! that tick is released: the emulator reads the command right after that tick's SIP and it
+//! acts from the tick after (a fixed actuation latency of three ticks, 0.3 s simulated).
 //!
 //! Reproducibility: the emulator runs on its own thread behind the tick gate of [`TruthLog`],
 //! so it cannot start tick `k + 1` before the loop has finished with SIP `k`; a slow control
 //! step delays simulated time instead of the robot driving on. One race is left that only the
-//! emulator could close: when its next tick is already due as a command's bytes arrive, its
-//! `select!` may take the tick first and the command lands one tick late. The run counts such
-//! commands (`late_commands`, checked by waiting for the emulator's command counter), as well
-//! as missed control ticks and gate time-outs; with all three at 0 a rerun gives identical
+//! emulator could close: if its next tick is already due when it goes back to reading after a
+//! SIP (a hold longer than one wall-clock SIP period), its `select!` may take the tick before
+//! the waiting command, which then lands one tick late. The loop checks the emulator's command
+//! counter before releasing that tick and counts such commands (`late_commands`), as well as
+//! missed control ticks and gate time-outs; with all three at 0 a rerun gives identical
 //! numbers.
 
 use std::path::{Path, PathBuf};
@@ -47,6 +49,8 @@ pub const TICK_S: f64 = 0.1;
 pub const ARRIVED_HOLD_S: f64 = 10.0;
 /// Wall-clock wait for SIPs before the link counts as lost (the gate may pause them).
 pub const LINK_TIMEOUT: Duration = Duration::from_secs(10);
+/// Wall-clock wait for the emulator to reach its next tick before a command is sent.
+pub const HOLD_WAIT: Duration = Duration::from_secs(1);
 /// Wall-clock wait for the emulator to read a command before it counts as late.
 pub const COMMAND_READ_WAIT: Duration = Duration::from_millis(50);
 /// The navigator's stop distance from its estimate, metres.
@@ -78,6 +82,8 @@ pub struct RunOutcome {
     pub filtered_errors: Vec<f64>,
     /// Distance of the raw (unfiltered) estimate from the emitter, per filter update.
     pub raw_errors: Vec<f64>,
+    /// Per filter update: no wall between the true robot position and the emitter.
+    pub line_of_sight: Vec<bool>,
     pub final_estimate: Option<Point2>,
     /// The navigator declared arrival at some point.
     pub robot_arrived: bool,
@@ -338,7 +344,10 @@ async fn drive(
     let mut first_tick: Option<u64> = None;
     let mut last_tick = 0u64;
     let mut next_control = 0u64;
+    // Command computed at the last control tick, not sent yet.
     let mut pending: Option<(f64, f64)> = None;
+    // Emulator command count to wait for before the next tick may run.
+    let mut outstanding: Option<u64> = None;
     let mut arrived_since: Option<f64> = None;
 
     loop {
@@ -381,6 +390,25 @@ async fn drive(
         if out.reached.is_some() || t >= scenario.spec.duration_s {
             break;
         }
+        // The command sent during the last hold must be in before the next tick may run.
+        if let Some(count) = outstanding.take() {
+            if !command_read(handle, count).await {
+                out.late_commands += 1;
+            }
+        }
+        // A command computed at an earlier control tick goes out while the emulator is held at
+        // the start of the next tick; the hold then only lasts as long as the send.
+        if let Some((v, w)) = pending.take() {
+            if !log.wait_held(tick + 1, HOLD_WAIT) {
+                out.late_commands += 1;
+            }
+            let before = handle.state().commands;
+            client
+                .set_velocity(v, w)
+                .await
+                .context("sending VEL/RVEL")?;
+            outstanding = Some(before + 2);
+        }
         if tick >= next_control {
             if tick > next_control {
                 out.late_control_steps += 1;
@@ -388,17 +416,6 @@ async fn drive(
             // Stay on the schedule of the first SIP, whatever the wall-clock delays.
             while next_control <= tick {
                 next_control += CONTROL_TICKS;
-            }
-            // The command of the previous control step, sent right after this tick's SIP.
-            if let Some((v, w)) = pending.take() {
-                let before = handle.state().commands;
-                client
-                    .set_velocity(v, w)
-                    .await
-                    .context("sending VEL/RVEL")?;
-                if !command_read(handle, before + 2).await {
-                    out.late_commands += 1;
-                }
             }
             let step = ControlStep {
                 t,
@@ -476,6 +493,9 @@ fn control_step(
             out.raw_errors
                 .push(Point::new(est.raw.x, est.raw.y).distance(&emitter));
             out.final_estimate = Some(est.mean);
+            let here = Point::new(truth.x, truth.y);
+            out.line_of_sight
+                .push(world.walls_crossed(&here, &emitter) == 0);
         }
     }
     let beams: Vec<ScanBeam> = sensors

@@ -33,6 +33,8 @@ struct LogState {
     released: Option<u64>,
     /// Releases that timed out.
     gate_timeouts: u64,
+    /// The tick the emulator is waiting to start, while it waits.
+    held: Option<u64>,
 }
 
 /// Shared, append-only log of the true pose per emulator tick, and the tick gate.
@@ -88,6 +90,10 @@ impl TruthLog {
             return;
         }
         let tick = s.calls / SUBSTEPS_PER_TICK + 1;
+        if s.released.is_some_and(|r| r < tick) {
+            s.held = Some(tick);
+            self.state.1.notify_all();
+        }
         while s.released.is_some_and(|r| r < tick) {
             let (next, timeout) = self
                 .state
@@ -100,6 +106,33 @@ impl TruthLog {
                 tracing::warn!(tick, "simulation gate timed out; the emulator goes on");
                 break;
             }
+        }
+        s.held = None;
+    }
+
+    /// Blocks the calling thread until the emulator is held at the start of `tick` (true), or
+    /// until it is past that point or `timeout` has elapsed (false). The emulator only needs
+    /// to reach its next tick, a fraction of one SIP period of wall time.
+    pub fn wait_held(&self, tick: u64, timeout: Duration) -> bool {
+        let deadline = std::time::Instant::now() + timeout;
+        let mut s = self.lock();
+        loop {
+            if s.held == Some(tick) {
+                return true;
+            }
+            if s.ticks.len() as u64 >= tick {
+                return false;
+            }
+            let now = std::time::Instant::now();
+            if now >= deadline {
+                return false;
+            }
+            s = self
+                .state
+                .1
+                .wait_timeout(s, deadline - now)
+                .unwrap_or_else(PoisonError::into_inner)
+                .0;
         }
     }
 
@@ -178,8 +211,10 @@ mod tests {
         std::thread::sleep(Duration::from_millis(50));
         assert!(log.after_tick(1).is_some());
         assert!(log.after_tick(2).is_none());
+        assert!(log.wait_held(2, Duration::from_secs(5)));
         log.release_through(2);
         runner.join().unwrap();
+        assert!(!log.wait_held(2, Duration::from_millis(10)));
         assert!(log.after_tick(2).is_some());
         assert_eq!(log.gate_timeouts(), 0);
     }
