@@ -394,6 +394,7 @@ async fn drive(
         if let Some(count) = outstanding.take() {
             if !command_read(handle, count).await {
                 out.late_commands += 1;
+                tracing::debug!(tick, "command read after the next tick started");
             }
         }
         // A command computed at an earlier control tick goes out while the emulator is held at
@@ -401,6 +402,7 @@ async fn drive(
         if let Some((v, w)) = pending.take() {
             if !log.wait_held(tick + 1, HOLD_WAIT) {
                 out.late_commands += 1;
+                tracing::debug!(tick, "emulator not held before a command");
             }
             let before = handle.state().commands;
             client
