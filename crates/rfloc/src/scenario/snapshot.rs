@@ -40,16 +40,19 @@ use rfloc_snapshot::{
     Action, ActionTable, ClusterCount, ClusteringMethod, ExplorationConfig, ExplorationInput,
     ExplorationPolicy, FilterConfig, LearnConfig, NavCommand, NavReason, Navigator,
     NavigatorConfig, Observation, PlanConfig, Snapshot, SnapshotDatabase, StateFilter, TagId,
+    TransitionPrior,
 };
 
 use super::SimOptions;
 
 mod actuation;
+mod goal;
 mod reflex;
 mod rig;
 mod stall;
 
 use actuation::Actuation;
+use goal::GoalRegion;
 use reflex::StallReflex;
 use rig::{RigSpec, SnapshotRig};
 use stall::StallDetector;
@@ -68,23 +71,17 @@ pub const WHEEL_SLIP: f64 = 0.02;
 pub const STALL_TURN_STEPS: usize = 18;
 /// States of the planning database as a fraction of the exploration snapshots (k-medoids).
 pub const NAV_STATE_FRACTION: f64 = 0.25;
+/// Navigator history window and the revisits of one state within it that count as a cycle.
+pub const NAV_WINDOW: usize = 24;
+pub const NAV_MAX_VISITS: usize = 10;
+/// Likelihood temperatures compared by replaying each trial's navigation sequence.
+pub const REPLAY_TAUS: [f64; 5] = [0.03, 0.06, 0.12, 0.25, 0.5];
 /// The snapshot trials run at least this many simulated seconds per wall second.
 pub const MIN_TIME_SCALE: f64 = 100.0;
 
 /// Planar distance of two poses.
 fn dist(a: &Pose2, b: &Pose2) -> f64 {
     (a.x - b.x).hypot(a.y - b.y)
-}
-
-/// The learned state whose mean pose is nearest `goal`.
-fn goal_state(db: &SnapshotDatabase, goal: &Point) -> anyhow::Result<usize> {
-    db.states
-        .iter()
-        .enumerate()
-        .map(|(i, s)| (i, (s.pose.x - goal.x).hypot(s.pose.y - goal.y)))
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|(i, _)| i)
-        .context("the database has no states")
 }
 
 /// Largest difference between a database and its reloaded copy (state poses and prototype
@@ -130,6 +127,27 @@ async fn learn_blocking(
     .await
     .map_err(|e| anyhow::anyhow!("learning task failed: {e}"))
     .and_then(|(o, db)| Ok((o, db?)))
+}
+
+/// Mean position error of a histogram filter with `config` run again over the navigation
+/// sequence (same snapshots and actions), so that filter settings compare on identical data.
+fn replay_mean_error(
+    db: &SnapshotDatabase,
+    config: FilterConfig,
+    sequence: &[(Option<Action>, Snapshot, Pose2)],
+) -> Option<f64> {
+    let mut filter = StateFilter::new(db, config);
+    let mut errors = Errors::default();
+    for (i, (action, snapshot, truth)) in sequence.iter().enumerate() {
+        if let Some(a) = action {
+            filter.predict(db, *a);
+        }
+        filter.update(db, snapshot);
+        #[allow(clippy::cast_precision_loss)]
+        let est = filter.estimate(db, i as f64);
+        errors.push(dist(&est.pose, truth));
+    }
+    errors.mean()
 }
 
 /// Per-trial error accumulator.
@@ -275,6 +293,12 @@ pub async fn run_trial(
             max_iter: 100,
             seed: 1,
         },
+        // Unobserved (state, action) rows stay put instead of spreading uniformly, so the plan
+        // never prefers an untried action for a chance of jumping to the goal.
+        prior: TransitionPrior {
+            alpha: 1.0,
+            self_fraction: 1.0,
+        },
         ..LearnConfig::default()
     };
     let (_, nav_db) = learn_blocking(by_truth, nav_config)
@@ -285,12 +309,20 @@ pub async fn run_trial(
         .context("saving the planning database")?;
 
     // 3. Navigation.
-    let goal_state = goal_state(&nav_db, &goal)?;
-    let plan = nav_db
-        .plan(goal_state, &PlanConfig::default())
+    let region = GoalRegion::around(&nav_db, &goal, tolerance)
+        .context("the planning database has no states")?;
+    let goal_state = region.goal;
+    let plan = region
+        .plan(&nav_db, &PlanConfig::default())
         .context("planning")?;
     let mut nav_filter = StateFilter::new(&nav_db, FilterConfig::default());
-    let mut navigator = Navigator::new(NavigatorConfig::default());
+    // A coarse state spans several steps (and a rotation of several steps), so staying in it
+    // is not yet a cycle: the revisit rule counts over a longer window.
+    let mut navigator = Navigator::new(NavigatorConfig {
+        window: NAV_WINDOW,
+        max_visits: NAV_MAX_VISITS,
+        ..NavigatorConfig::default()
+    });
     let mut filter = StateFilter::new(&db, FilterConfig::default());
     let mut odom_filter = StateFilter::new(&odom_db, FilterConfig::default());
     let mut stalls = StallDetector::new(STALL_WINDOW, STALL_GAIN_M);
@@ -302,6 +334,10 @@ pub async fn run_trial(
     let (mut escapes, mut reversals, mut turnarounds) = (0u32, 0u32, 0u32);
     let mut steps_taken = 0usize;
     let mut ambiguous_goal = 0u32;
+    let mut nav_log = String::from(
+        "step,x,y,theta,est_x,est_y,plan_state,state_x,state_y,state_theta,action,reason\n",
+    );
+    let mut replay: Vec<(Option<Action>, Snapshot, Pose2)> = Vec::new();
     let start_distance = dist(&rig.truth(), &goal_pose);
     for step in 0..=nav_steps {
         let snapshot: Snapshot = rig.read_snapshot().await?;
@@ -324,6 +360,7 @@ pub async fn run_trial(
             nearest_err.push(dist(&s.pose, &truth));
         }
         stalls.push(dist(&truth, &goal_pose));
+        replay.push((prev, snapshot.clone(), truth));
         steps_taken = step;
         if dist(&est.pose, &goal_pose) <= 0.5 * tolerance {
             declared = Some("estimate");
@@ -332,7 +369,7 @@ pub async fn run_trial(
         if step == nav_steps {
             break;
         }
-        let state = nav_filter.map_state();
+        let state = region.planning_state(nav_filter.map_state());
         match navigator.decide(&plan, state, Some(nav_db.no_tags_state()), &mut rng) {
             NavCommand::Arrived if dist(&est.pose, &goal_pose) <= tolerance => {
                 declared = Some("goal state");
@@ -353,6 +390,14 @@ pub async fn run_trial(
                     }
                 };
                 let action = reflex.override_action(action);
+                let map_pose = nav_db
+                    .states
+                    .get(nav_filter.map_state())
+                    .map_or(Pose2::default(), |s| s.pose);
+                nav_log.push_str(&format!(
+                    "{step},{:.3},{:.3},{:.3},{:.3},{:.3},{state},{:.3},{:.3},{:.3},{action:?},{reason:?}\n",
+                    truth.x, truth.y, truth.theta, est.pose.x, est.pose.y, map_pose.x, map_pose.y, map_pose.theta
+                ));
                 match reason {
                     NavReason::CycleEscape | NavReason::Explore => escapes += 1,
                     NavReason::AvoidReversal => reversals += 1,
@@ -399,8 +444,18 @@ pub async fn run_trial(
         rec.metric("odometry_db_max_error_m", odom_err.max);
     }
     rec.metric("odometry_drift_after_exploration_m", odom_drift);
+    for tau in REPLAY_TAUS {
+        let cfg = FilterConfig {
+            likelihood_scale: tau,
+            ..FilterConfig::default()
+        };
+        if let Some(m) = replay_mean_error(&db, cfg, &replay) {
+            rec.metric(&format!("replay_tau_{tau}_mean_error_m"), m);
+        }
+    }
     rec.metric("states", db.states.len() as f64);
     rec.metric("plan_states", nav_db.states.len() as f64);
+    rec.metric("goal_region_states", region.members as f64);
     rec.metric("database_reload_max_difference", reload_diff);
     rec.metric("empty_exploration_snapshots", empty as f64);
     rec.metric("cycle_escapes", f64::from(escapes));
@@ -426,6 +481,7 @@ pub async fn run_trial(
         .collect();
     std::fs::write(dir.join("metrics.csv"), format!("metric,value\n{lines}"))
         .context("writing metrics.csv")?;
+    std::fs::write(dir.join("navigation.csv"), nav_log).context("writing navigation.csv")?;
     tracing::info!(
         trial,
         reached,
