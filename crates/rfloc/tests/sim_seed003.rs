@@ -72,9 +72,10 @@ fn seed003_case1_short_run_end_to_end() {
             p.display()
         );
     }
-    // The captures hold the drivers' traffic: Pioneer SIPs and XBee ND rounds.
-    let pioneer = rfloc_capture_lines(&trial.join("pioneer.cap"));
-    let xbee = rfloc_capture_lines(&trial.join("xbee.cap"));
+    // The captures hold the drivers' traffic both ways, in the capture format, stamped with
+    // the emulator's simulated clock: the Pioneer's SIPs (FA FB …) and the XBee ND rounds.
+    let pioneer = check_capture(&trial.join("pioneer.cap"), "pioneer-aria", 0xFA);
+    let xbee = check_capture(&trial.join("xbee.cap"), "xbee-api2", 0x7E);
     assert!(pioneer > 300, "pioneer.cap has {pioneer} records");
     assert!(xbee > 40, "xbee.cap has {xbee} records");
 
@@ -84,21 +85,17 @@ fn seed003_case1_short_run_end_to_end() {
     assert!(mapped >= 1.0, "no beacon mapped\n{table}");
     assert!(metric(&table, "sweeps") >= 5.0, "{table}");
 
-    // Same seed, same run. The emulators run on wall time (time scale 10: one SIP per 10 ms),
-    // so a trial is reproducible bit for bit when the trial loop answered every SIP before the
-    // next one (`late_sips` = 0); on a loaded machine a late answer moves one command by a
-    // tick, and then only the numbers are compared, loosely.
+    // Same seed, same run, up to timing. The emulators run on wall time (time scale 10: one
+    // SIP per 10 ms); when the trial loop answers every SIP well before the next tick the two
+    // runs were seen to be identical bit for bit, but a command that reaches the emulated
+    // Pioneer just at a tick boundary (a loaded machine) lands in either tick, and the runs
+    // then drift apart slightly. So the numbers are compared, loosely.
     let again = sim(&scenario, &tmp.path().join("b"));
-    let late = metric(&table, "late_sips") + metric(&again, "late_sips");
-    if late == 0.0 {
-        for f in ["truth.csv", "estimate.csv"] {
-            let a = std::fs::read(trial.join(f)).unwrap();
-            let b = std::fs::read(tmp.path().join("b/trial-00").join(f)).unwrap();
-            assert!(a == b, "{f} differs between two runs with the same seed");
-        }
-    } else {
-        eprintln!("{late} late SIPs over both runs: comparing numbers only");
-    }
+    eprintln!(
+        "late SIPs: {} and {}",
+        metric(&table, "late_sips"),
+        metric(&again, "late_sips")
+    );
     for m in ["rmse_m", "odometry_rmse_m"] {
         let (a, b) = (metric(&table, m), metric(&again, m));
         assert!((a - b).abs() < 0.05, "{m}: {a} vs {b}\n{table}\n{again}");
@@ -109,11 +106,33 @@ fn seed003_case1_short_run_end_to_end() {
     );
 }
 
-/// Data records (lines after the header) of a capture file.
-fn rfloc_capture_lines(path: &Path) -> usize {
-    std::fs::read_to_string(path)
-        .unwrap()
-        .lines()
-        .filter(|l| l.starts_with(|c: char| c.is_ascii_digit()))
-        .count()
+/// Parses a capture; checks its device, that times never go back and stay within the
+/// 40 s mission plus sweeps and settling, and that both directions carry frames starting with
+/// `start`. Returns the record count.
+fn check_capture(path: &Path, device: &str, start: u8) -> usize {
+    use rfloc_capture::{Capture, RecordKind};
+    let cap = Capture::from_path(path).unwrap();
+    assert_eq!(cap.header.device.as_deref(), Some(device));
+    let (mut rx, mut tx, mut last) = (0, 0, 0.0);
+    for r in &cap.records {
+        assert!(
+            r.t() >= last,
+            "{}: time goes back at {}",
+            path.display(),
+            r.t()
+        );
+        last = r.t();
+        match &r.kind {
+            RecordKind::Rx(b) if b.contains(&start) => rx += 1,
+            RecordKind::Tx(b) if b.first() == Some(&start) => tx += 1,
+            _ => {}
+        }
+    }
+    assert!(rx > 0 && tx > 0, "{}: rx {rx}, tx {tx}", path.display());
+    assert!(
+        last > 10.0 && last < 200.0,
+        "{}: last record at {last} s",
+        path.display()
+    );
+    cap.records.len()
 }

@@ -87,8 +87,8 @@ pub const DEFAULT_SLIP_SIGMA: f64 = 0.05;
 /// Map a new beacon from triangulated bearings (the filter's delayed initialisation) instead
 /// of from its first RSSI range and bearing.
 const DELAYED_INIT: bool = true;
-/// Simulated seconds the trial waits after connecting before it starts driving.
-const SETTLE_S: f64 = 1.0;
+/// SIPs the trial waits for after connecting before it starts driving (1 s).
+const SETTLE_SIPS: u64 = 10;
 /// SIP period of the emulated Pioneer, seconds.
 const SIP_PERIOD_S: f64 = 0.1;
 /// Emulator substep, seconds (the Pioneer emulator runs 10 substeps per 100 ms SIP).
@@ -140,7 +140,7 @@ pub async fn run_trial(
         antenna,
     )
     .await?;
-    let truth = TruthLog::follow(&rig.robot);
+    let truth = rig.truth.clone();
     let xbee = rig
         .take_xbee()
         .context("the XBee driver was already taken")?;
@@ -367,23 +367,24 @@ impl Mission {
         // Let the link settle (handshake replies, first SIPs) before the mission starts, so
         // that the first command meets the same emulator tick in every run.
         let (mut first, mut tick) = Self::next_sample(&mut odometry, truth).await?;
-        let settle_until = tick.sim_time + SETTLE_S;
-        while tick.sim_time < settle_until {
+        let settle_until = first.seq + SETTLE_SIPS;
+        while first.seq < settle_until {
             (first, tick) = Self::next_sample(&mut odometry, truth).await?;
         }
         let mut prev_odo = first.pose;
-        let mut last_sim = tick.sim_time;
+        let mut last_seq = first.seq;
         self.record(tick.truth);
         let mut since_sweep = 0.0;
         let mut stopping = false;
         let mut resync = false;
         loop {
             let (o, tick) = Self::next_sample(&mut odometry, truth).await?;
-            let dt = tick.sim_time - last_sim;
-            if dt <= 1e-9 {
+            // The driver counts SIPs; the emulator sends one per 100 ms tick.
+            if o.seq <= last_seq {
                 continue;
             }
-            last_sim = tick.sim_time;
+            let sips = o.seq - last_seq;
+            last_seq = o.seq;
             let ground = o.pose.relative_to(&prev_odo);
             prev_odo = o.pose;
             // SIP periods since the previous sample (more than one when the loop fell behind).
@@ -394,11 +395,7 @@ impl Mission {
             // A sample without wheel motion also counts as one period: nothing physical
             // happened, and a loop that fell behind at a standstill must not shift the clock.
             let standing = ground.x == 0.0 && ground.y == 0.0 && ground.theta == 0.0;
-            let periods = if resync || standing {
-                1
-            } else {
-                (dt / SIP_PERIOD_S).round().max(1.0) as u64
-            };
+            let periods = if resync || standing { 1 } else { sips };
             if periods > 1 {
                 // Only counted while driving (see `standing`).
                 self.late_sips += 1;
@@ -432,6 +429,9 @@ impl Mission {
                     && ground.theta.abs() < 1e-3;
                 if still {
                     self.sweep(o.pose.theta, tick.truth).await?;
+                    // The newest SIP arrived during the sweep; resume on a fresh one, so the
+                    // first command meets the next tick as every other command does.
+                    odometry.borrow_and_update();
                     self.t += SWEEP_SECONDS;
                     self.record(tick.truth);
                     stopping = false;

@@ -23,6 +23,8 @@ use rfloc_xbee::{
     EmulatorConfig as XBeeEmulatorConfig, NdLayout, NdLayoutHint, RssiFn, XBeeClient,
 };
 use tokio::task::JoinHandle;
+
+use super::truth_log::TruthLog;
 use tokio_serial::{SerialPort, SerialStream};
 
 /// The XBee link as the bearing scan uses it.
@@ -54,7 +56,8 @@ pub struct RigSettings {
 pub struct Rig {
     pub base: AriaClient,
     xbee: Option<XBeeLink>,
-    pub robot: EmulatorHandle,
+    /// True pose per emulator tick.
+    pub truth: TruthLog,
     tasks: Vec<JoinHandle<()>>,
     /// Slave ends kept open so the masters never see a hang-up.
     _slaves: Vec<SerialStream>,
@@ -124,6 +127,7 @@ impl Rig {
 
         // Pioneer base.
         let (master, slave, base_link) = pty(9600)?;
+        let truth_log = TruthLog::new(scenario.start_pose(trial));
         let emulator = RobotEmulator::new(EmulatorConfig {
             time_scale: scale,
             initial_pose: scenario.start_pose(trial),
@@ -133,7 +137,8 @@ impl Rig {
             }),
             noise_seed: scenario.trial_seed(trial),
             ..EmulatorConfig::default()
-        });
+        })
+        .with_motion_hook(truth_log.hook());
         let robot = emulator.handle();
         tasks.push(tokio::spawn(async move {
             let mut emulator = emulator;
@@ -228,7 +233,7 @@ impl Rig {
         Ok(Rig {
             base,
             xbee: Some(xbee),
-            robot,
+            truth: truth_log,
             tasks,
             _slaves: slaves,
             sinks: vec![base_sink, xbee_sink],
