@@ -41,10 +41,14 @@
 //! (`bearing_error_rms_deg`, `rssi_residual_*`, and their ratios to the σ given to the filter,
 //! `*_z_rms`).
 //!
-//! Reproducibility. The emulators run on wall time (`--time-scale` simulated seconds per
-//! second). A trial is identical bit for bit when the loop answered every SIP before the next
-//! one; when it fell behind while driving (a loaded machine), one command met a later tick
-//! and the run diverges slightly. `late_sips` in the report counts these.
+//! Reproducibility. Every random draw is seeded from the trial seed (sensor streams of
+//! `SensorSuite`, the odometry slip), the truth is read per emulator tick from a motion hook,
+//! and the clock counts SIPs. The emulators still run on wall time (`--time-scale` simulated
+//! seconds per second), so a command lands in the tick after the SIP it answers only if it
+//! reaches the emulated Pioneer in time: runs that kept up were identical bit for bit (three
+//! repeated 40 s runs at time scale 10, `late_sips` = 0); on a loaded machine the loop falls
+//! behind (`late_sips` counts the SIPs it skipped while driving) or a command arrives just as
+//! a tick fires (the emulator's `select!` then picks either), and the run drifts slightly.
 
 use std::collections::BTreeMap;
 use std::path::Path;
