@@ -8,24 +8,37 @@
 //!
 //! 1. **Exploration**: `exploration_steps` steps of `ExplorationPolicy`; each step reads
 //!    [`READS_PER_STEP`] tag lists at rest, averages them (`Snapshot::average`, the seed's
-//!    `scanNetTags`), then drives the chosen action ([`actuation`]). Each sample is stored with
-//!    the emulator's **true** pose (as the seed's simulator did) and, for comparison, with the
-//!    robot's odometry pose.
-//! 2. **Learning**: `SnapshotDatabase::learn` (k-medoids, k = n/2), saved atomically to
-//!    `snapshot-db.json` in the trial folder and loaded back; navigation uses the loaded copy.
-//!    A second database is learned from the odometry poses (`snapshot-db-odometry.json`).
-//! 3. **Navigation** to the trial's goal: the goal state is the learned state nearest the goal
-//!    point; value-iteration plan; each step reads a snapshot, updates the `StateFilter`
-//!    (predict with the last action, update with the snapshot) and asks the `Navigator` for an
-//!    action from the filter's most probable state. The robot stops when the navigator reports
-//!    arrival or the filter's position estimate is within half the goal tolerance of the goal,
-//!    or after `navigation_steps` steps.
+//!    `scanNetTags`), then drives the chosen action ([`actuation`]: Table 4's per-step
+//!    displacement over [`DRIVE_DURATION_S`], with the scenario's action noise). Each sample is
+//!    stored with the emulator's **true** pose (as the seed's simulator did) and, for
+//!    comparison, with the robot's odometry pose. The world has walls (the seed's had none):
+//!    when the Pioneer's SIPs report a wheel stall, the next [`STALL_TURN_STEPS`] actions are
+//!    rotations ([`reflex`]), in exploration and navigation alike.
+//! 2. **Learning** (on the blocking pool): the localisation database (`SnapshotDatabase::learn`,
+//!    k-medoids, k = n/2) is saved atomically to `snapshot-db.json` and loaded back; everything
+//!    after uses the loaded copy. The same samples with odometry poses give
+//!    `snapshot-db-odometry.json`; a coarser planning database (k = [`NAV_STATE_FRACTION`]·n,
+//!    unobserved rows stay put) gives `snapshot-db-plan.json`.
+//! 3. **Navigation** to the trial's goal: every planning state within the goal tolerance of the
+//!    goal point belongs to the goal ([`goal`]); value iteration over the merged model. Each
+//!    step reads a snapshot, runs two `StateFilter`s (localisation and planning databases;
+//!    predict with the last action, update with the snapshot) and asks the `Navigator` (window
+//!    [`NAV_WINDOW`], [`NAV_MAX_VISITS`] revisits) for an action from the planning filter's most
+//!    probable state. The robot stops when the localisation estimate is within half the goal
+//!    tolerance of the goal, or the navigator reports arrival with the estimate within the
+//!    tolerance (otherwise it takes an exploration step), or after `navigation_steps` steps.
 //!
-//! Recorded: truth and the filter estimate at every navigation step. **Times in `truth.csv`,
-//! `estimate.csv` and `time_to_goal` are navigation steps** (the seed's Table 4.9 unit), not
-//! seconds; the captures carry the emulator's simulated seconds. A trial succeeds when the robot
-//! stops within the goal tolerance. A "limit cycle" is counted when the true distance to the
-//! goal does not improve by [`STALL_GAIN_M`] for [`STALL_WINDOW`] steps ([`stall`]).
+//! Recorded: truth and the localisation filter's estimate at every navigation step. **Times in
+//! `truth.csv`, `estimate.csv` and `time_to_goal` are navigation steps** (the seed's Table 4.9
+//! unit), not seconds; the captures carry the emulator's simulated seconds. `navigation.csv`
+//! logs every decision, `metrics.csv` the trial's numbers. A trial succeeds when the robot stops
+//! within the goal tolerance. A "limit cycle" is counted when the true distance to the goal does
+//! not improve by [`STALL_GAIN_M`] for [`STALL_WINDOW`] steps ([`stall`]). The seed's
+//! nearest-state rule, the odometry-pose database and other filter temperatures are scored on the
+//! same navigation sequence for comparison.
+//!
+//! Runs are seeded from the trial seed but not bit-reproducible: the emulators run on wall-clock
+//! ticks, so a stop command sometimes lands one 0.1 s tick late (`late_stops`).
 
 use std::path::Path;
 use std::time::Instant;
