@@ -60,8 +60,8 @@ use nalgebra::Matrix3;
 use rfloc_aria::Odometry;
 use rfloc_bearing::{EstimatorConfig, PathLossModel, ScanConfig, ScanRunner, SweepPlanConfig};
 use rfloc_ekfslam::{
-    BeaconObservation, EkfSlam, EkfSlamConfig, ObservationOutcome, PathLoss, WaypointController,
-    WaypointControllerConfig,
+    BeaconObservation, DelayedInit, EkfSlam, EkfSlamConfig, ObservationOutcome, PathLoss,
+    WaypointController, WaypointControllerConfig,
 };
 use rfloc_pose::{angle_diff, Pose2};
 use rfloc_sim::geometry::Point;
@@ -91,6 +91,10 @@ pub const DEFAULT_SLIP_SIGMA: f64 = 0.05;
 /// Map a new beacon from triangulated bearings (the filter's delayed initialisation) instead
 /// of from its first RSSI range and bearing.
 const DELAYED_INIT: bool = true;
+/// A triangulated beacon joins the map once the largest σ of its position is below this, m
+/// (the filter's default 1.5 m let a beacon seen only head-on, e.g. case II's (9, 2) on the
+/// first leg, in with a wrong range).
+const DELAYED_INIT_MAX_STD_M: f64 = 0.5;
 /// SIPs the trial waits for after connecting before it starts driving (1 s).
 const SETTLE_SIPS: u64 = 10;
 /// SIP period of the emulated Pioneer, seconds.
@@ -273,6 +277,10 @@ impl Mission {
                 path_loss: PathLoss {
                     p_ref_dbm: model.p_ref_dbm,
                     eta: model.eta,
+                },
+                delayed_init: DelayedInit {
+                    max_std_m: DELAYED_INIT_MAX_STD_M,
+                    ..DelayedInit::default()
                 },
                 ..EkfSlamConfig::default()
             },
