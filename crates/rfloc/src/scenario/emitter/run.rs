@@ -394,7 +394,14 @@ async fn drive(
         if let Some(count) = outstanding.take() {
             if !command_read(handle, count).await {
                 out.late_commands += 1;
-                tracing::debug!(tick, "command read after the next tick started");
+                tracing::debug!(
+                    tick,
+                    held = ?log.held(),
+                    commands = handle.state().commands,
+                    expected = count,
+                    sim_time = handle.state().sim_time,
+                    "command read after the next tick started"
+                );
             }
         }
         // A command computed at an earlier control tick goes out while the emulator is held at

@@ -76,6 +76,12 @@ impl TruthLog {
         self.state.1.notify_all();
     }
 
+    /// The tick the emulator is held at, if it is waiting for a release.
+    #[must_use]
+    pub fn held(&self) -> Option<u64> {
+        self.lock().held
+    }
+
     /// How many times the emulator stopped waiting for a release.
     #[must_use]
     pub fn gate_timeouts(&self) -> u64 {
