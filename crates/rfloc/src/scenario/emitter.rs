@@ -6,10 +6,24 @@
 //!   pty's slave side by path through `rfloc_transport::open`, records the link into
 //!   `pioneer.cap` and drives the robot through the real `AriaClient` (handshake, SIPs,
 //!   VEL/RVEL, keep-alive). The robot's pose belief is the start pose composed with the
-//!   client's odometry; wheel slip is off (see `run`), so odometry is only wrong where the body is stopped by a wall.
+//!   client's odometry; wheel slip is off (see `run`), so
+//!   odometry matches the truth up to the SIP's quantisation (1 mm, 0.09°), also where a wall
+//!   stops the body.
 //! - The **four 915 MHz receivers, the laser range finder and the bumpers** have no wire
 //!   protocol in the seed (nor in rfloc). They are read in-process from `rfloc-sim`'s models
 //!   at the emulator's *true* pose of the SIP period being processed.
+//!
+//! Choices the seed leaves open, made here (constants in `run` and `homing`):
+//! - `A1`/`A2` come from a least-squares calibration against the simulated receivers in an
+//!   empty field (`calibration`); walls and multipath are not calibrated away.
+//! - 5 Hz control, sensing and filtering; commands act 0.3 s after the data they come from.
+//! - A 12 m × 12 m map of 20 cm cells centred on the start; the navigator's goal is the
+//!   filtered estimate moved inside the map; A* plans on the map grown by one cell.
+//! - The 20 cm avoidance distance is measured from the body (the simulated laser sits at the
+//!   centre of a 0.2 m-radius body); the robot stops 0.3 m from its estimate, inside the
+//!   seed's 50 cm completion radius, which the referee checks on the true pose.
+//! - The particle filter restarts around the recent raw estimates when they mostly disagree
+//!   with it (after the emitter reappears from behind a wall).
 //!
 //! Each trial runs the scenario's system (full or preliminary) and then the other one from the
 //! same start, so the report can show both columns of the seed's Table 1. Everything random is
