@@ -1,9 +1,8 @@
 //! Pioneer base task: connect (handshake), forward odometry, apply motion commands, reconnect.
 
 use std::io;
-use std::time::Duration;
 
-use rfloc_aria::{client::ConnectFuture, AriaClient, ClientConfig};
+use rfloc_aria::{client::ConnectFuture, AriaClient};
 use rfloc_transport::Transport;
 use tokio::sync::mpsc;
 
@@ -30,12 +29,8 @@ pub(super) async fn run(
                     .map_err(|e| io::Error::other(format!("{e:#}")))
             })
         };
-        let config = ClientConfig {
-            pulse_period: Duration::from_secs_f64(settings.pulse_period_s.max(0.05)),
-            clock: Some(ctx.clock.clone()),
-            ..ClientConfig::default()
-        }
-        .scaled(ctx.time_scale);
+        let config =
+            super::scaled_base_config(ctx.clock.clone(), settings.pulse_period_s, ctx.time_scale);
         let client = tokio::select! {
             () = ctx.stop.cancelled() => return,
             c = AriaClient::connect(connector, config) => c,

@@ -22,9 +22,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::Context;
-use rfloc_aria::{
-    AriaClient, ClientConfig, EmulatorConfig as RobotConfig, EmulatorHandle, RobotEmulator,
-};
+use rfloc_aria::{AriaClient, EmulatorConfig as RobotConfig, EmulatorHandle, RobotEmulator};
 use rfloc_capture::Header;
 use rfloc_kts::{
     EmulatorConfig as ReaderConfig, KtsClient, KtsConfig, KtsEmulator, TagEventKind, TagGrid, Uid,
@@ -125,6 +123,53 @@ fn sink(
         .with_context(|| format!("creating capture {}", path.display()))
 }
 
+/// Eight 45° steps with a pause at each stop, driven by the odometry's accumulated rotation.
+struct TurnScript {
+    rate: f64,
+    /// Rotation so far (odometry), rad.
+    turned: f64,
+    /// Stops reached.
+    stops: u32,
+    /// Simulated time the current pause ends.
+    pause_until: f64,
+    finished_at: Option<f64>,
+}
+
+impl TurnScript {
+    fn new(rate: f64) -> Self {
+        Self {
+            rate,
+            turned: 0.0,
+            stops: 0,
+            pause_until: 0.5,
+            finished_at: None,
+        }
+    }
+
+    /// Rotational velocity to command at simulated time `now`.
+    fn command(&mut self, now: f64) -> f64 {
+        if self.finished_at.is_some() || now < self.pause_until {
+            return 0.0;
+        }
+        // The last stop goes 2° past the full turn so the pipeline sees all of it.
+        let next = f64::from(self.stops + 1) * std::f64::consts::FRAC_PI_4
+            + if self.stops == 7 {
+                2f64.to_radians()
+            } else {
+                0.0
+            };
+        if self.turned >= next {
+            self.stops += 1;
+            self.pause_until = now + STOP_PAUSE_S;
+            if self.stops >= 8 {
+                self.finished_at = Some(now);
+            }
+            return 0.0;
+        }
+        self.rate
+    }
+}
+
 /// Runs one trial.
 pub async fn run_trial(
     scenario: &Scenario,
@@ -190,11 +235,7 @@ pub async fn run_trial(
     );
     let base = AriaClient::from_stream(
         base_io,
-        ClientConfig {
-            clock: Some(clock.clone()),
-            ..ClientConfig::default()
-        }
-        .scaled(scale),
+        crate::devices::scaled_base_config(clock.clone(), 1.0, scale),
     )
     .await
     .context("Pioneer handshake")?;
@@ -213,20 +254,13 @@ pub async fn run_trial(
     let mut tags = kts.take_events().context("tag events")?;
     kts.start_scan().await.context("start scanning")?;
 
-    // The turn: eight 45° steps at the scenario's turn rate, pausing at each stop.
+    // The turn: eight 45° steps at the scenario's turn rate, pausing at each stop. Closed loop
+    // on the driver's odometry (as a robot would do it), so a busy machine that sends a command
+    // late changes the timing, not the angle turned.
     let rate = scenario.spec.robot.drive.max_turn_rate.clamp(0.1, 2.0);
-    let step_s = std::f64::consts::FRAC_PI_4 / rate;
-    let mut plan: Vec<(f64, f64)> = Vec::new(); // (until sim time, rotational velocity)
-    let mut t_plan = 0.5;
-    plan.push((t_plan, 0.0));
-    for k in 0..8 {
-        // The last step turns a little further: acceleration limits eat a few degrees.
-        t_plan += if k == 7 { step_s * 1.15 } else { step_s };
-        plan.push((t_plan, rate));
-        t_plan += STOP_PAUSE_S;
-        plan.push((t_plan, 0.0));
-    }
-    let end_s = t_plan.max(scenario.spec.duration_s) + 2.0;
+    let mut turn = TurnScript::new(rate);
+    // A hard stop in case the base never turns (e.g. stalled): three times the scenario's time.
+    let end_s = 3.0 * scenario.spec.duration_s.max(10.0);
 
     let mut pipeline = HfGridPipeline::new(&pipeline_settings(scenario));
     let mut odom = base.odometry();
@@ -234,16 +268,20 @@ pub async fn run_trial(
     let mut tracking: Vec<f64> = Vec::new(); // position errors after the fix
     let mut commanded = f64::NAN;
     let mut last_cmd_t = f64::NEG_INFINITY;
+    let mut last_odom: Option<Pose2> = None;
     let mut tick = tokio::time::interval(Duration::from_secs_f64(0.02));
     loop {
         let now = truth.state().sim_time;
-        if now >= end_s {
+        if now >= end_s || turn.finished_at.is_some_and(|t| now > t + 2.0) {
             break;
         }
         tokio::select! {
             changed = odom.changed() => {
                 if changed.is_err() { break; }
                 let o = *odom.borrow_and_update();
+                if let Some(prev) = last_odom.replace(o.pose) {
+                    turn.turned += angle_diff(o.pose.theta, prev.theta).abs();
+                }
                 let t = truth.state();
                 rec.truth(t.sim_time, t.truth);
                 let ev = DeviceEvent::Odometry { device: "base".into(), t: o.time, pose: o.pose, v: o.v, w: o.w };
@@ -268,7 +306,7 @@ pub async fn run_trial(
                 }
             }
             _ = tick.tick() => {
-                let w = plan.iter().find(|(until, _)| now < *until).map_or(0.0, |(_, w)| *w);
+                let w = turn.command(now);
                 // Re-send every 0.5 simulated seconds to keep the robot's watchdog fed.
                 if (w - commanded).abs() > 1e-9 || now - last_cmd_t > 0.5 {
                     base.set_velocity(0.0, w).await.context("velocity command")?;
