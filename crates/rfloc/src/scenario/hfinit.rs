@@ -29,8 +29,10 @@ use rfloc_kts::{
     UidScheme,
 };
 use rfloc_pose::{angle_diff, EstimateMode, Pose2};
+use rfloc_sim::metrics::interpolate;
 use rfloc_sim::recorder::TrialRecorder;
 use rfloc_sim::Scenario;
+use rfloc_sim::TimedPose;
 use rfloc_transport::{open, CaptureSink, Clock, LinkConfig, Recorder, SharedClock};
 use tokio_util::sync::CancellationToken;
 
@@ -269,6 +271,7 @@ pub async fn run_trial(
     let mut commanded = f64::NAN;
     let mut last_cmd_t = f64::NEG_INFINITY;
     let mut last_odom: Option<Pose2> = None;
+    let mut truth_log: Vec<TimedPose> = Vec::new();
     let mut tick = tokio::time::interval(Duration::from_secs_f64(0.02));
     loop {
         let now = truth.state().sim_time;
@@ -284,15 +287,20 @@ pub async fn run_trial(
                 }
                 let t = truth.state();
                 rec.truth(t.sim_time, t.truth);
+                truth_log.push(TimedPose::new(t.sim_time, t.truth));
                 let ev = DeviceEvent::Odometry { device: "base".into(), t: o.time, pose: o.pose, v: o.v, w: o.w };
                 if let Some(est) = pipeline.handle(&ev) {
                     if est.mode == EstimateMode::Fix {
                         if fix.is_none() {
                             // The seed's measure is the initial pose: that is the trial's estimate.
-                            fix = Some((t.sim_time, est.pose, t.truth));
-                            rec.estimate(t.sim_time, est.pose);
+                            // Scored against the truth at the odometry's own time: the loop may
+                            // run behind the emulator while the robot is still turning.
+                            let tru = interpolate(&truth_log, o.time).unwrap_or(t.truth);
+                            fix = Some((o.time, est.pose, tru));
+                            rec.estimate(o.time, est.pose);
                         } else {
-                            tracking.push(est.pose.distance(&t.truth));
+                            let tru = interpolate(&truth_log, o.time).unwrap_or(t.truth);
+                            tracking.push(est.pose.distance(&tru));
                         }
                     }
                 }
