@@ -302,7 +302,10 @@ proptest! {
             (Ok(a), Ok(r)) => {
                 prop_assert!(angle_diff(r.bearing_rad, a.bearing_rad + alpha).abs() < 1e-9);
                 prop_assert!((r.range_m - a.range_m).abs() < 1e-9);
-                prop_assert!((r.bearing_variance_rad2 - a.bearing_variance_rad2).abs() < 1e-12);
+                // Relative: a flat fit can have a large variance, where 1e-12 absolute is
+                // below the rounding of the rotated angles.
+                let scale = a.bearing_variance_rad2.abs().max(1.0);
+                prop_assert!((r.bearing_variance_rad2 - a.bearing_variance_rad2).abs() < 1e-9 * scale);
             }
             (a, r) => prop_assert_eq!(a.is_ok(), r.is_ok()),
         }
