@@ -22,7 +22,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::Context;
-use rfloc_aria::{AriaClient, EmulatorConfig as RobotConfig, EmulatorHandle, RobotEmulator};
+use rfloc_aria::{AriaClient, EmulatorConfig as RobotConfig, RobotEmulator};
 use rfloc_capture::Header;
 use rfloc_kts::{
     EmulatorConfig as ReaderConfig, KtsClient, KtsConfig, KtsEmulator, TagEventKind, TagGrid, Uid,
@@ -33,29 +33,19 @@ use rfloc_sim::metrics::interpolate;
 use rfloc_sim::recorder::TrialRecorder;
 use rfloc_sim::Scenario;
 use rfloc_sim::TimedPose;
-use rfloc_transport::{open, CaptureSink, Clock, LinkConfig, Recorder, SharedClock};
+use rfloc_transport::{open, CaptureSink, LinkConfig, Recorder, SharedClock};
 use tokio_util::sync::CancellationToken;
 
 use super::SimOptions;
 use crate::config::{GridTag, HfGridSettings};
 use crate::events::DeviceEvent;
 use crate::pipeline::{HfGridPipeline, Pipeline};
-use crate::sim::pty_link;
+use crate::sim::{pty_link, EmulatorClock};
 
 /// Antenna offset behind the robot centre (seed 002: 10 cm).
 const ANTENNA_OFFSET_M: f64 = 0.10;
 /// Pause at each 45° stop, simulated seconds.
 const STOP_PAUSE_S: f64 = 0.5;
-
-/// The emulator's simulated clock as the drivers' clock.
-#[derive(Debug, Clone)]
-struct EmulatorClock(EmulatorHandle);
-
-impl Clock for EmulatorClock {
-    fn now(&self) -> f64 {
-        self.0.state().sim_time
-    }
-}
 
 /// A world tag's full ISO 15693 UID: short IDs (seed 002 Table 9 prints only the last hex
 /// digits) get the seed's UID prefix.

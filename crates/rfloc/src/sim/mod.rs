@@ -20,6 +20,17 @@ use tokio_util::sync::CancellationToken;
 use crate::config::{DriverConfig, EstimatorConfig, RobotConfig, SimulationConfig};
 use crate::devices::MotionSender;
 
+/// The Pioneer emulator's simulated clock (seconds), for driver timestamps and captures in
+/// simulated trials: times then line up with the emulator, not with wall time.
+#[derive(Debug, Clone)]
+pub struct EmulatorClock(pub EmulatorHandle);
+
+impl rfloc_transport::Clock for EmulatorClock {
+    fn now(&self) -> f64 {
+        self.0.state().sim_time
+    }
+}
+
 /// Running emulators of one simulation.
 pub struct SimRuntime {
     /// Cancels the emulators; separate from the daemon's token so that device tasks can still

@@ -7,17 +7,16 @@ use std::path::Path;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
+pub use crate::sim::EmulatorClock;
 use anyhow::Context;
 use rfloc_aria::{
-    AriaClient, ClientConfig as AriaClientConfig, ConnectFuture, EmulatorConfig, EmulatorHandle,
-    RobotEmulator, WheelSlip,
+    AriaClient, ClientConfig as AriaClientConfig, ConnectFuture, EmulatorConfig, RobotEmulator,
+    WheelSlip,
 };
 use rfloc_capture::Header;
 use rfloc_sim::{Scenario, SensorSuite};
 use rfloc_stepper::AngleProbe;
-use rfloc_transport::{
-    open, CaptureSink, Clock, LinkConfig, Recorder, SerialLink, SharedClock, Transport,
-};
+use rfloc_transport::{open, CaptureSink, LinkConfig, Recorder, SharedClock, Transport};
 use rfloc_xbee::{
     Address16, Address64, ApiMode, Beacon, ClientConfig as XBeeClientConfig, CoordinatorEmulator,
     EmulatorConfig as XBeeEmulatorConfig, NdLayout, NdLayoutHint, RssiFn, XBeeClient,
@@ -25,21 +24,10 @@ use rfloc_xbee::{
 use tokio::task::JoinHandle;
 
 use super::truth_log::TruthLog;
-use tokio_serial::{SerialPort, SerialStream};
+use tokio_serial::SerialStream;
 
 /// The XBee link as the bearing scan uses it.
 pub type XBeeLink = XBeeClient<Recorder<Transport>>;
-
-/// Capture timestamps: the Pioneer emulator's simulated clock (seconds), so captures line up
-/// with the emulator's time rather than with wall time.
-#[derive(Debug, Clone)]
-pub struct EmulatorClock(pub EmulatorHandle);
-
-impl Clock for EmulatorClock {
-    fn now(&self) -> f64 {
-        self.0.state().sim_time
-    }
-}
 
 /// Settings of the rig that are not in the scenario file.
 #[derive(Debug, Clone, Copy)]
@@ -62,20 +50,6 @@ pub struct Rig {
     /// Slave ends kept open so the masters never see a hang-up.
     _slaves: Vec<SerialStream>,
     sinks: Vec<CaptureSink>,
-}
-
-fn pty(baud: u32) -> anyhow::Result<(SerialStream, SerialStream, LinkConfig)> {
-    let (master, slave) = SerialStream::pair().context("creating a pseudo-terminal pair")?;
-    let path = slave.name().context("pseudo-terminal has no name")?;
-    let link = LinkConfig::Serial(SerialLink {
-        path,
-        baud,
-        data_bits: Default::default(),
-        parity: Default::default(),
-        stop_bits: Default::default(),
-        flow_control: Default::default(),
-    });
-    Ok((master, slave, link))
 }
 
 fn sink(
@@ -126,7 +100,7 @@ impl Rig {
         let scale = settings.time_scale;
 
         // Pioneer base.
-        let (master, slave, base_link) = pty(9600)?;
+        let (master, slave, base_link) = crate::sim::pty_link(9600)?;
         let truth_log = TruthLog::new(scenario.start_pose(trial));
         let emulator = RobotEmulator::new(EmulatorConfig {
             time_scale: scale,
@@ -158,7 +132,7 @@ impl Rig {
         )?;
 
         // XBee coordinator in the reflector.
-        let (master, slave, xbee_link) = pty(115_200)?;
+        let (master, slave, xbee_link) = crate::sim::pty_link(115_200)?;
         let beacons: Vec<Beacon> = scenario
             .world
             .beacons

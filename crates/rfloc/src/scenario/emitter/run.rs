@@ -22,6 +22,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Duration;
 
+use crate::sim::EmulatorClock;
 use anyhow::Context;
 use rfloc_aria::{AriaClient, ClientConfig, EmulatorConfig, EmulatorHandle, RobotEmulator};
 use rfloc_capture::Header;
@@ -31,8 +32,7 @@ use rfloc_emitter::{
 };
 use rfloc_pose::Pose2;
 use rfloc_sim::{Point, Scenario, SensorSuite};
-use rfloc_transport::{CaptureSink, Clock, LinkConfig, Recorder, SerialLink, SharedClock};
-use tokio_serial::{SerialPort, SerialStream};
+use rfloc_transport::{CaptureSink, LinkConfig, Recorder, SharedClock};
 
 use super::calibration::calibrate;
 use super::homing::{EmitterHoming, HomingConfig};
@@ -98,30 +98,6 @@ pub struct RunOutcome {
     pub late_commands: u64,
     /// Times the emulator stopped waiting for the control loop.
     pub gate_timeouts: u64,
-}
-
-/// The emulator's simulated time as a clock (captures and odometry carry simulated seconds).
-#[derive(Debug)]
-struct EmulatorClock(EmulatorHandle);
-
-impl Clock for EmulatorClock {
-    fn now(&self) -> f64 {
-        self.0.state().sim_time
-    }
-}
-
-fn pty_link() -> anyhow::Result<(SerialStream, SerialStream, LinkConfig)> {
-    let (master, slave) = SerialStream::pair().context("creating a pseudo-terminal pair")?;
-    let path = slave.name().context("pseudo-terminal has no name")?;
-    let link = LinkConfig::Serial(SerialLink {
-        path,
-        baud: 9600,
-        data_bits: Default::default(),
-        parity: Default::default(),
-        stop_bits: Default::default(),
-        flow_control: Default::default(),
-    });
-    Ok((master, slave, link))
 }
 
 fn homing_config(
@@ -260,7 +236,7 @@ impl EmulatorThread {
                 };
                 rt.block_on(async move {
                     // The pty is registered with this thread's runtime.
-                    let (master, slave, link) = match pty_link() {
+                    let (master, slave, link) = match crate::sim::pty_link(9600) {
                         Ok(p) => p,
                         Err(e) => {
                             let _ = link_tx.send(Err(e));

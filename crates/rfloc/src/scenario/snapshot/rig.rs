@@ -9,6 +9,7 @@ use std::path::Path;
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
+use crate::sim::EmulatorClock;
 use anyhow::Context;
 use rfloc_alien::{
     AlienClient, AlienConfig, EmulatorOptions, ReaderEmulator, ReaderSetup, SnapshotReader,
@@ -21,7 +22,7 @@ use rfloc_capture::Header;
 use rfloc_pose::Pose2;
 use rfloc_sim::{Point, Scenario, SensorSuite, World};
 use rfloc_snapshot::{AverageConfig, AverageTagSet, MotionCommand, Snapshot, TagId};
-use rfloc_transport::{open, CaptureSink, Clock, LinkConfig, Recorder, SharedClock, TcpLink};
+use rfloc_transport::{open, CaptureSink, LinkConfig, Recorder, SharedClock, TcpLink};
 use tokio::task::JoinHandle;
 use tokio_util::sync::CancellationToken;
 
@@ -36,16 +37,6 @@ const STOPPED_V: f64 = 1e-3;
 const STOPPED_W: f64 = 1e-3;
 /// Longest simulated wait for the robot to come to rest after a stop command.
 const SETTLE_LIMIT_S: f64 = 2.0;
-
-/// The emulator's simulated clock as the drivers' clock.
-#[derive(Debug, Clone)]
-struct EmulatorClock(EmulatorHandle);
-
-impl Clock for EmulatorClock {
-    fn now(&self) -> f64 {
-        self.0.state().sim_time
-    }
-}
 
 type RecordedTcp = Recorder<rfloc_transport::Transport>;
 
