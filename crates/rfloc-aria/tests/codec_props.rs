@@ -172,7 +172,11 @@ proptest! {
         prop_assert_eq!(framed + d.dropped_bytes() + d.pending() as u64, bytes.len() as u64);
     }
 
-    /// A corrupted byte in one frame loses at most that frame.
+    /// A corrupted byte in one frame loses at most that frame — when no payload contains the
+    /// header bytes `FA FB`. The protocol has no escaping: a corrupted frame whose payload holds
+    /// `FA FB n` looks like the start of an n-byte frame and can swallow the frames after it
+    /// (they stay pending until enough bytes arrive). That limit is the protocol's, and is
+    /// documented in the crate README.
     #[test]
     fn corruption_loses_only_the_hit_frame(
         payloads in proptest::collection::vec(proptest::collection::vec(any::<u8>(), 1..30), 3..6),
@@ -180,6 +184,7 @@ proptest! {
         pos in 3usize..30,
         flip in 1u8..=255,
     ) {
+        prop_assume!(payloads.iter().all(|p| !p.windows(2).any(|w| w == [0xFA, 0xFB])));
         let frames: Vec<Frame> = payloads.into_iter().map(|p| Frame::new(0x32, p)).collect();
         let mut stream = Vec::new();
         let mut start = 0;
