@@ -655,9 +655,6 @@ fn locate(text: &str, offset: usize) -> (Option<usize>, Option<usize>, Option<St
             }
         } else if t.starts_with('[') {
             table = t.trim_matches(|c| c == '[' || c == ']').trim().to_string();
-            if table.starts_with("device.") {
-                // A sub-table of the current device.
-            }
         }
     }
     let current_line = text.lines().nth(line - 1).unwrap_or("");

@@ -202,6 +202,11 @@ pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
             )
         })
         .collect();
+    let driver_of: HashMap<&str, &'static str> = cfg
+        .devices
+        .iter()
+        .map(|d| (d.name.as_str(), d.driver.kind()))
+        .collect();
     let mut last_seen: HashMap<String, tokio::time::Instant> = HashMap::new();
     let mut stale: HashMap<String, bool> = HashMap::new();
     let watchdog = notify::watchdog_period().unwrap_or(Duration::from_secs(1));
@@ -230,7 +235,7 @@ pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
                         let was = stale.insert(name.clone(), is_stale).unwrap_or(false);
                         if is_stale && !was {
                             tracing::warn!(device = %name, "device silent; poses degrade");
-                            let driver = cfg.devices.iter().find(|d| &d.name == name).map_or("?", |d| d.driver.kind());
+                            let driver = driver_of.get(name.as_str()).copied().unwrap_or("?");
                             hub.publish_device(name, message::device_json(name, driver, DeviceState::Stale, &format!("silent for more than {:.1} s", limit.as_secs_f64()), SystemTime::now()));
                         }
                     }
@@ -246,7 +251,7 @@ pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
             let name = event.device().to_string();
             last_seen.insert(name.clone(), tokio::time::Instant::now());
             if stale.insert(name.clone(), false) == Some(true) {
-                let driver = cfg.devices.iter().find(|d| d.name == name).map_or("?", |d| d.driver.kind());
+                let driver = driver_of.get(name.as_str()).copied().unwrap_or("?");
                 hub.publish_device(&name, message::device_json(&name, driver, DeviceState::Connected, "data again", SystemTime::now()));
             }
             if let Some(mut est) = estimator.handle(&event) {

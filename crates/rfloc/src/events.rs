@@ -1,5 +1,6 @@
 //! What device tasks send to the estimator task.
 
+use rfloc_kts::{TagEvent, TagEventKind};
 use rfloc_pose::Pose2;
 
 use crate::message::DeviceState;
@@ -56,6 +57,38 @@ impl DeviceEvent {
             | DeviceEvent::UhfSnapshot { device, .. }
             | DeviceEvent::Mark { device, .. }
             | DeviceEvent::Status { device, .. } => device,
+        }
+    }
+}
+
+impl DeviceEvent {
+    /// The HF floor-tag event of a KTS `SCAN:+UID` report with RSSI; `None` for `SCAN:-UID`
+    /// (a tag leaving the field is not a position fix) or a report without RSSI. RSSI values
+    /// are clamped into 0–255 (the reader gives 0–7).
+    #[must_use]
+    pub fn from_tag_event(device: &str, ev: &TagEvent) -> Option<Self> {
+        let TagEventKind::Seen { rssi: Some(r) } = &ev.kind else {
+            return None;
+        };
+        let clamp = |v: i32| u8::try_from(v.clamp(0, 255)).unwrap_or(0);
+        Some(DeviceEvent::HfTag {
+            device: device.to_string(),
+            t: ev.t,
+            uid: ev.uid.to_string(),
+            rssi: clamp(r.main),
+            rssi_second: clamp(r.aux.unwrap_or(r.main)),
+        })
+    }
+
+    /// When the observation was made (driver clock); `None` for status changes.
+    #[must_use]
+    pub fn time(&self) -> Option<f64> {
+        match self {
+            DeviceEvent::Odometry { t, .. }
+            | DeviceEvent::HfTag { t, .. }
+            | DeviceEvent::UhfSnapshot { t, .. }
+            | DeviceEvent::Mark { t, .. } => Some(*t),
+            DeviceEvent::Status { .. } => None,
         }
     }
 }

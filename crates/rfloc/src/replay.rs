@@ -12,7 +12,7 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 use anyhow::Context;
 use rfloc_aria::{ConversionFactors, FrameDecoder, OdometryTracker, ServerPacket};
 use rfloc_capture::{Capture, RecordKind};
-use rfloc_kts::{KtsClient, KtsConfig, TagEventKind};
+use rfloc_kts::{KtsClient, KtsConfig};
 use rfloc_transport::replay::{ReplayMode, Replayer};
 use rfloc_transport::SharedClock;
 
@@ -89,9 +89,9 @@ pub async fn replay_lines(
             }
         }
     }
-    events.sort_by(|a, b| event_time(a).total_cmp(&event_time(b)));
+    events.sort_by(|a, b| a.time().unwrap_or(0.0).total_cmp(&b.time().unwrap_or(0.0)));
     // The end of the recording is an event too: pipelines that wait for more input finish here.
-    let end = events.last().map_or(0.0, event_time);
+    let end = events.last().and_then(DeviceEvent::time).unwrap_or(0.0);
     events.push(DeviceEvent::Mark {
         device: "replay".into(),
         t: end,
@@ -128,16 +128,6 @@ pub async fn replay_lines(
     Ok(lines)
 }
 
-fn event_time(e: &DeviceEvent) -> f64 {
-    match e {
-        DeviceEvent::Odometry { t, .. }
-        | DeviceEvent::HfTag { t, .. }
-        | DeviceEvent::UhfSnapshot { t, .. }
-        | DeviceEvent::Mark { t, .. } => *t,
-        DeviceEvent::Status { .. } => 0.0,
-    }
-}
-
 async fn replay_kts(name: &str, cap: Capture) -> anyhow::Result<Vec<DeviceEvent>> {
     let (io, mut handle) = Replayer::new(cap).mode(ReplayMode::Stream).start();
     let clock: SharedClock = handle.clock();
@@ -149,16 +139,7 @@ async fn replay_kts(name: &str, cap: Capture) -> anyhow::Result<Vec<DeviceEvent>
     let mut rx = client.take_events().context("event stream already taken")?;
     let mut out = Vec::new();
     while let Some(ev) = rx.recv().await {
-        if let TagEventKind::Seen { rssi: Some(r) } = ev.kind {
-            let clamp = |v: i32| u8::try_from(v.clamp(0, 255)).unwrap_or(0);
-            out.push(DeviceEvent::HfTag {
-                device: name.to_string(),
-                t: ev.t,
-                uid: ev.uid.to_string(),
-                rssi: clamp(r.main),
-                rssi_second: clamp(r.aux.unwrap_or(r.main)),
-            });
-        }
+        out.extend(DeviceEvent::from_tag_event(name, &ev));
     }
     let report = handle.finished().await;
     tracing::debug!(?report, stats = ?client.stats(), "kts replay done");

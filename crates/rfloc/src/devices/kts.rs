@@ -2,7 +2,7 @@
 
 use std::time::Duration;
 
-use rfloc_kts::{KtsClient, KtsConfig, TagEventKind};
+use rfloc_kts::{KtsClient, KtsConfig};
 
 use crate::config::KtsSettings;
 use crate::daemon::{backoff, DeviceContext};
@@ -58,15 +58,7 @@ pub(super) async fn run(ctx: DeviceContext, settings: KtsSettings) {
                 }
                 ev = events.recv() => {
                     let Some(ev) = ev else { break };
-                    if let TagEventKind::Seen { rssi: Some(r) } = ev.kind {
-                        let clamp = |v: i32| u8::try_from(v.clamp(0, 255)).unwrap_or(0);
-                        let out = DeviceEvent::HfTag {
-                            device: ctx.device.name.clone(),
-                            t: ev.t,
-                            uid: ev.uid.to_string(),
-                            rssi: clamp(r.main),
-                            rssi_second: clamp(r.aux.unwrap_or(r.main)),
-                        };
+                    if let Some(out) = DeviceEvent::from_tag_event(&ctx.device.name, &ev) {
                         if ctx.events.send(out).await.is_err() {
                             return;
                         }

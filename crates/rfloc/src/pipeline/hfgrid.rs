@@ -42,7 +42,6 @@ pub struct HfGridPipeline {
     /// Accumulated rotation since the turn started (odometry), rad.
     turned: f64,
     refusals: u64,
-    last_time: f64,
     last_no_fix: f64,
     /// Tag reports since the last odometry event, applied as one update.
     pending: Vec<TagReading>,
@@ -106,7 +105,6 @@ impl HfGridPipeline {
             odom_last: None,
             turned: 0.0,
             refusals: 0,
-            last_time: 0.0,
             last_no_fix: f64::NEG_INFINITY,
             pending: Vec::new(),
         }
@@ -276,13 +274,6 @@ impl Pipeline for HfGridPipeline {
     }
 
     fn handle(&mut self, event: &DeviceEvent) -> Option<PoseEstimate> {
-        if let DeviceEvent::Odometry { t, .. }
-        | DeviceEvent::HfTag { t, .. }
-        | DeviceEvent::Mark { t, .. } = event
-        {
-            self.last_time = *t;
-        }
-        let time = self.last_time;
         match &mut self.phase {
             Phase::Turning => self.handle_turning(event),
             Phase::Tracking(tracker) => match event {
@@ -318,10 +309,7 @@ impl Pipeline for HfGridPipeline {
                 }
                 DeviceEvent::Mark { .. }
                 | DeviceEvent::Status { .. }
-                | DeviceEvent::UhfSnapshot { .. } => {
-                    let _ = time;
-                    None
-                }
+                | DeviceEvent::UhfSnapshot { .. } => None,
             },
         }
     }

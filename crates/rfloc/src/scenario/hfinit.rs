@@ -23,27 +23,28 @@ use std::time::Duration;
 
 use anyhow::Context;
 use rfloc_aria::{AriaClient, EmulatorConfig as RobotConfig, RobotEmulator};
-use rfloc_capture::Header;
 use rfloc_kts::{
-    EmulatorConfig as ReaderConfig, KtsClient, KtsConfig, KtsEmulator, TagEventKind, TagGrid, Uid,
-    UidScheme,
+    EmulatorConfig as ReaderConfig, KtsClient, KtsConfig, KtsEmulator, TagGrid, Uid, UidScheme,
 };
 use rfloc_pose::{angle_diff, EstimateMode, Pose2};
 use rfloc_sim::metrics::interpolate;
 use rfloc_sim::recorder::TrialRecorder;
 use rfloc_sim::Scenario;
 use rfloc_sim::TimedPose;
-use rfloc_transport::{open, CaptureSink, LinkConfig, Recorder, SharedClock};
+use rfloc_transport::{open, Recorder, SharedClock};
 use tokio_util::sync::CancellationToken;
 
 use super::SimOptions;
 use crate::config::{GridTag, HfGridSettings};
 use crate::events::DeviceEvent;
 use crate::pipeline::{HfGridPipeline, Pipeline};
-use crate::sim::{pty_link, EmulatorClock};
+use crate::sim::{pty_link, trial_capture, EmulatorClock};
 
 /// Antenna offset behind the robot centre (seed 002: 10 cm).
 const ANTENNA_OFFSET_M: f64 = 0.10;
+/// Header note of the trial's captures.
+const CAPTURE_NOTE: &str =
+    "simulated seed 002 initialisation turn; timestamps are the Pioneer emulator's simulated seconds";
 /// Pause at each 45° stop, simulated seconds.
 const STOP_PAUSE_S: f64 = 0.5;
 
@@ -99,20 +100,6 @@ fn pipeline_settings(scenario: &Scenario) -> HfGridSettings {
             })
             .collect(),
     }
-}
-
-fn sink(
-    dir: &Path,
-    file: &str,
-    device: &str,
-    link: &LinkConfig,
-    clock: SharedClock,
-) -> anyhow::Result<CaptureSink> {
-    let mut header = Header::new(device, link.describe());
-    header.notes.push("simulated seed 002 initialisation turn; timestamps are the Pioneer emulator's simulated seconds".into());
-    let path = dir.join(file);
-    CaptureSink::create(&path, &header, clock)
-        .with_context(|| format!("creating capture {}", path.display()))
 }
 
 /// Eight 45° steps with a pause at each stop, driven by the odometry's accumulated rotation.
@@ -217,12 +204,13 @@ pub async fn run_trial(
     // Drivers through the pty paths, recorded.
     let base_io = Recorder::new(
         open(&robot_link).await?,
-        sink(
+        trial_capture(
             dir,
             "pioneer.cap",
             "pioneer-aria",
             &robot_link,
             clock.clone(),
+            &[CAPTURE_NOTE],
         )?,
     );
     let base = AriaClient::from_stream(
@@ -233,7 +221,14 @@ pub async fn run_trial(
     .context("Pioneer handshake")?;
     let reader_io = Recorder::new(
         open(&reader_link).await?,
-        sink(dir, "kts.cap", "kts-rfidm1356", &reader_link, clock.clone())?,
+        trial_capture(
+            dir,
+            "kts.cap",
+            "kts-rfidm1356",
+            &reader_link,
+            clock.clone(),
+            &[CAPTURE_NOTE],
+        )?,
     );
     let mut kts = KtsClient::spawn(
         reader_io,
@@ -297,9 +292,7 @@ pub async fn run_trial(
             }
             ev = tags.recv() => {
                 let Some(ev) = ev else { break };
-                if let TagEventKind::Seen { rssi: Some(r) } = ev.kind {
-                    let clamp = |v: i32| u8::try_from(v.clamp(0, 255)).unwrap_or(0);
-                    let e = DeviceEvent::HfTag { device: "hf".into(), t: ev.t, uid: ev.uid.to_string(), rssi: clamp(r.main), rssi_second: clamp(r.aux.unwrap_or(r.main)) };
+                if let Some(e) = DeviceEvent::from_tag_event("hf", &ev) {
                     let _ = pipeline.handle(&e);
                 }
             }

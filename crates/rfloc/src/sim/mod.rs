@@ -31,6 +31,23 @@ impl rfloc_transport::Clock for EmulatorClock {
     }
 }
 
+/// Creates the capture of one device link of a simulated trial (`dir/file`), with the link's
+/// description and the given notes in its header.
+pub fn trial_capture(
+    dir: &std::path::Path,
+    file: &str,
+    device: &str,
+    link: &LinkConfig,
+    clock: rfloc_transport::SharedClock,
+    notes: &[&str],
+) -> anyhow::Result<rfloc_transport::CaptureSink> {
+    let mut header = rfloc_capture::Header::new(device, link.describe());
+    header.notes.extend(notes.iter().map(|n| (*n).to_string()));
+    let path = dir.join(file);
+    rfloc_transport::CaptureSink::create(&path, &header, clock)
+        .with_context(|| format!("creating capture {}", path.display()))
+}
+
 /// Running emulators of one simulation.
 pub struct SimRuntime {
     /// Cancels the emulators; separate from the daemon's token so that device tasks can still

@@ -13,10 +13,9 @@ use rfloc_aria::{
     AriaClient, ClientConfig as AriaClientConfig, ConnectFuture, EmulatorConfig, RobotEmulator,
     WheelSlip,
 };
-use rfloc_capture::Header;
 use rfloc_sim::{Scenario, SensorSuite};
 use rfloc_stepper::AngleProbe;
-use rfloc_transport::{open, CaptureSink, LinkConfig, Recorder, SharedClock, Transport};
+use rfloc_transport::{open, CaptureSink, Recorder, SharedClock, Transport};
 use rfloc_xbee::{
     Address16, Address64, ApiMode, Beacon, ClientConfig as XBeeClientConfig, CoordinatorEmulator,
     EmulatorConfig as XBeeEmulatorConfig, NdLayout, NdLayoutHint, RssiFn, XBeeClient,
@@ -28,6 +27,9 @@ use tokio_serial::SerialStream;
 
 /// The XBee link as the bearing scan uses it.
 pub type XBeeLink = XBeeClient<Recorder<Transport>>;
+
+/// Second header note of every capture: which clock the timestamps are on.
+const EMULATOR_TIME_NOTE: &str = "timestamps: simulated seconds of the Pioneer emulator";
 
 /// Settings of the rig that are not in the scenario file.
 #[derive(Debug, Clone, Copy)]
@@ -50,24 +52,6 @@ pub struct Rig {
     /// Slave ends kept open so the masters never see a hang-up.
     _slaves: Vec<SerialStream>,
     sinks: Vec<CaptureSink>,
-}
-
-fn sink(
-    dir: &Path,
-    file: &str,
-    device: &str,
-    link: &LinkConfig,
-    clock: SharedClock,
-    note: &str,
-) -> anyhow::Result<CaptureSink> {
-    let mut header = Header::new(device, link.describe());
-    header.notes.push(note.to_string());
-    header
-        .notes
-        .push("timestamps: simulated seconds of the Pioneer emulator".to_string());
-    let path = dir.join(file);
-    CaptureSink::create(&path, &header, clock)
-        .with_context(|| format!("creating capture {}", path.display()))
 }
 
 /// The Pioneer driver's settings for an emulator running `scale` times faster than wall time:
@@ -122,13 +106,16 @@ impl Rig {
         }));
         slaves.push(slave);
         let clock: SharedClock = Arc::new(EmulatorClock(robot.clone()));
-        let base_sink = sink(
+        let base_sink = crate::sim::trial_capture(
             dir,
             "pioneer.cap",
             "pioneer-aria",
             &base_link,
             Arc::clone(&clock),
-            &format!("seed003 trial {trial}: emulated Pioneer on a pty"),
+            &[
+                format!("seed003 trial {trial}: emulated Pioneer on a pty").as_str(),
+                EMULATOR_TIME_NOTE,
+            ],
         )?;
 
         // XBee coordinator in the reflector.
@@ -168,13 +155,16 @@ impl Rig {
             }
         }));
         slaves.push(slave);
-        let xbee_sink = sink(
+        let xbee_sink = crate::sim::trial_capture(
             dir,
             "xbee.cap",
             "xbee-api2",
             &xbee_link,
             Arc::clone(&clock),
-            &format!("seed003 trial {trial}: emulated XBee coordinator on a pty"),
+            &[
+                format!("seed003 trial {trial}: emulated XBee coordinator on a pty").as_str(),
+                EMULATOR_TIME_NOTE,
+            ],
         )?;
 
         // Drivers, opened by path as the daemon opens its devices.

@@ -18,7 +18,6 @@ use rfloc_aria::{
     AriaClient, ClientConfig, EmulatorConfig as RobotConfig, EmulatorHandle, MotionHook,
     RobotEmulator, WheelSlip,
 };
-use rfloc_capture::Header;
 use rfloc_pose::Pose2;
 use rfloc_sim::{Point, Scenario, SensorSuite, World};
 use rfloc_snapshot::{AverageConfig, AverageTagSet, MotionCommand, Snapshot, TagId};
@@ -70,21 +69,6 @@ pub struct SnapshotRig {
     bad_epcs: Arc<Mutex<u64>>,
     counters: RigCounters,
     _robot_slave: tokio_serial::SerialStream,
-}
-
-fn sink(
-    dir: &Path,
-    file: &str,
-    device: &str,
-    link: &LinkConfig,
-    clock: SharedClock,
-    note: &str,
-) -> anyhow::Result<CaptureSink> {
-    let mut header = Header::new(device, link.describe());
-    header.notes.push(note.to_string());
-    let path = dir.join(file);
-    CaptureSink::create(&path, &header, clock)
-        .with_context(|| format!("creating capture {}", path.display()))
 }
 
 /// A motion hook that keeps a disc of `radius` inside the world (walls stall the wheels;
@@ -188,13 +172,13 @@ impl SnapshotRig {
             "simulated seed 000 snapshot trial {} of {}; timestamps are the Pioneer emulator's simulated seconds",
             spec.trial, scenario.spec.name
         );
-        let base_sink = sink(
+        let base_sink = crate::sim::trial_capture(
             spec.dir,
             "pioneer.cap",
             "pioneer-aria",
             &robot_link,
             clock.clone(),
-            &note,
+            &[note.as_str()],
         )?;
         let base_io = Recorder::new(open(&robot_link).await?, base_sink.clone());
         let mut base_config = ClientConfig {
@@ -209,13 +193,13 @@ impl SnapshotRig {
             .await
             .context("Pioneer handshake")?;
 
-        let reader_sink = sink(
+        let reader_sink = crate::sim::trial_capture(
             spec.dir,
             "alien.cap",
             "alien-alr9900",
             &reader_link,
             clock.clone(),
-            &note,
+            &[note.as_str()],
         )?;
         let reader_io = Recorder::new(
             open(&reader_link)
