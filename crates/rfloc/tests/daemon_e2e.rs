@@ -4,24 +4,16 @@
 //! SIGTERM ends the daemon cleanly and the robot saw STOP and CLOSE.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-use std::process::Stdio;
+mod common;
+
 use std::sync::Arc;
 use std::time::Duration;
 
 use rfloc_aria::{EmulatorConfig as RobotConfig, RobotEmulator};
 use rfloc_kts::{EmulatorConfig as ReaderConfig, KtsEmulator, TagGrid};
-use tokio::io::{AsyncBufReadExt, BufReader};
 use tokio::net::TcpListener;
 use tokio::sync::watch;
 use tokio_serial::{SerialPort, SerialStream};
-
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
 
 /// Reads JSON lines until one satisfies `pred`, within `limit`.
 async fn wait_for<R: tokio::io::AsyncBufRead + Unpin>(
@@ -81,7 +73,7 @@ async fn daemon_publishes_reconnects_and_stops_the_robot() {
         }
     });
 
-    let pose_port = free_port();
+    let pose_port = common::free_port();
     let dir = tempfile::tempdir().unwrap();
     let cfg = dir.path().join("robot.toml");
     std::fs::write(
@@ -112,31 +104,8 @@ tcp = "127.0.0.1:{pose_port}"
     )
     .unwrap();
 
-    let mut daemon = std::process::Command::new(env!("CARGO_BIN_EXE_rfloc"))
-        .args(["run", "-c"])
-        .arg(&cfg)
-        .env("RFLOC_LOG", "info")
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut stderr = daemon.stderr.take().unwrap();
-    let log = std::thread::spawn(move || {
-        let mut text = String::new();
-        let _ = std::io::Read::read_to_string(&mut stderr, &mut text);
-        text
-    });
-
-    // Connect to the pose stream (retry while the daemon starts).
-    let mut stream = None;
-    for _ in 0..100 {
-        if let Ok(s) = tokio::net::TcpStream::connect(("127.0.0.1", pose_port)).await {
-            stream = Some(s);
-            break;
-        }
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    }
-    let mut lines = BufReader::new(stream.expect("pose port never opened")).lines();
+    let daemon = common::Daemon::start(&cfg, "info");
+    let mut lines = daemon.pose_lines(pose_port).await;
     let version = wait_for(&mut lines, Duration::from_secs(5), "VERSION", |v| {
         v["class"] == "VERSION"
     })
@@ -180,25 +149,7 @@ tcp = "127.0.0.1:{pose_port}"
     .await;
 
     // SIGTERM: clean exit, robot stopped and closed.
-    let pid = daemon.id();
-    let killed = std::process::Command::new("kill")
-        .args(["-TERM", &pid.to_string()])
-        .status()
-        .unwrap();
-    assert!(killed.success());
-    let mut status = None;
-    for _ in 0..300 {
-        if let Some(s) = daemon.try_wait().unwrap() {
-            status = Some(s);
-            break;
-        }
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    }
-    let Some(status) = status else {
-        let _ = daemon.kill();
-        panic!("daemon did not exit within 15 s of SIGTERM");
-    };
-    let log = log.join().unwrap();
+    let (status, log) = daemon.terminate().await;
     assert!(status.success(), "exit {status:?}\n{log}");
     assert!(log.contains("SIGTERM"), "{log}");
     let state = robot_state.state();

@@ -4,7 +4,8 @@
 //! the reader sees from one learned place to another moves the published pose with them.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-use std::process::Stdio;
+mod common;
+
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -15,7 +16,6 @@ use rfloc_snapshot::{
     Action, ClusterCount, ClusteringMethod, LearnConfig, Observation, Snapshot, SnapshotDatabase,
     TagId,
 };
-use tokio::io::{AsyncBufReadExt, BufReader};
 use tokio_serial::{SerialPort, SerialStream};
 
 const SECRET: &str = "s3cret-reader-pw";
@@ -105,11 +105,7 @@ async fn uhf_daemon_localises_on_the_learned_database() {
             .await;
     });
 
-    let pose_port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
+    let pose_port = common::free_port();
     let cfg = dir.path().join("robot.toml");
     std::fs::write(
         &cfg,
@@ -145,53 +141,14 @@ dir = "{}"
     )
     .unwrap();
 
-    let mut daemon = std::process::Command::new(env!("CARGO_BIN_EXE_rfloc"))
-        .args(["run", "-c"])
-        .arg(&cfg)
-        .env("RFLOC_LOG", "debug")
-        .env_remove("CREDENTIALS_DIRECTORY")
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut stderr = daemon.stderr.take().unwrap();
-    let log = std::thread::spawn(move || {
-        let mut text = String::new();
-        let _ = std::io::Read::read_to_string(&mut stderr, &mut text);
-        text
-    });
-
-    let mut stream = None;
-    for _ in 0..100 {
-        if let Ok(s) = tokio::net::TcpStream::connect(("127.0.0.1", pose_port)).await {
-            stream = Some(s);
-            break;
-        }
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    }
-    let mut lines = BufReader::new(stream.expect("pose port")).lines();
+    let daemon = common::Daemon::start(&cfg, "debug");
+    let mut lines = daemon.pose_lines(pose_port).await;
     let at_b = wait_pose_near(&mut lines, 2.0, 1.0).await;
     assert_eq!(at_b["mode"], "fix");
     *seen.lock().unwrap() = 0;
     wait_pose_near(&mut lines, 0.0, 0.0).await;
 
-    std::process::Command::new("kill")
-        .args(["-TERM", &daemon.id().to_string()])
-        .status()
-        .unwrap();
-    let mut status = None;
-    for _ in 0..300 {
-        if let Some(s) = daemon.try_wait().unwrap() {
-            status = Some(s);
-            break;
-        }
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    }
-    let status = status.unwrap_or_else(|| {
-        let _ = daemon.kill();
-        panic!("daemon did not exit")
-    });
-    let log = log.join().unwrap();
+    let (status, log) = daemon.terminate().await;
     assert!(status.success(), "{log}");
     assert!(log.contains("learned snapshot database loaded"), "{log}");
     assert!(

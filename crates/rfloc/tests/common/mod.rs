@@ -1,0 +1,79 @@
+//! The `rfloc` binary as a child process, for end-to-end tests.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, dead_code)]
+
+use std::process::{Child, ExitStatus, Stdio};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use tokio::io::{BufReader, Lines};
+use tokio::net::TcpStream;
+
+/// A free loopback TCP port.
+pub fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+/// `rfloc run -c <config>` with its log (stderr) collected.
+pub struct Daemon {
+    child: Child,
+    log: Option<JoinHandle<String>>,
+}
+
+impl Daemon {
+    /// Starts the daemon with `RFLOC_LOG=<log_level>` and without a systemd credentials folder.
+    pub fn start(config: &std::path::Path, log_level: &str) -> Self {
+        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_rfloc"))
+            .args(["run", "-c"])
+            .arg(config)
+            .env("RFLOC_LOG", log_level)
+            .env_remove("CREDENTIALS_DIRECTORY")
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut stderr = child.stderr.take().unwrap();
+        let log = std::thread::spawn(move || {
+            let mut text = String::new();
+            let _ = std::io::Read::read_to_string(&mut stderr, &mut text);
+            text
+        });
+        Self {
+            child,
+            log: Some(log),
+        }
+    }
+
+    /// The pose stream's JSON lines, retrying the connection while the daemon starts (5 s).
+    pub async fn pose_lines(&self, port: u16) -> Lines<BufReader<TcpStream>> {
+        use tokio::io::AsyncBufReadExt;
+        for _ in 0..100 {
+            if let Ok(s) = TcpStream::connect(("127.0.0.1", port)).await {
+                return BufReader::new(s).lines();
+            }
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+        panic!("pose port {port} never opened");
+    }
+
+    /// Sends SIGTERM and waits up to 15 s; returns the exit status and the whole log.
+    pub async fn terminate(mut self) -> (ExitStatus, String) {
+        let killed = std::process::Command::new("kill")
+            .args(["-TERM", &self.child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(killed.success());
+        for _ in 0..300 {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                let log = self.log.take().unwrap().join().unwrap();
+                return (status, log);
+            }
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+        let _ = self.child.kill();
+        panic!("daemon did not exit within 15 s of SIGTERM");
+    }
+}
