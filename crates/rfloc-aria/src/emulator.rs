@@ -1,14 +1,22 @@
 //! A differential-drive Pioneer that serves the protocol over any byte stream, for tests and
 //! the simulator.
 //!
-//! Simulated time advances in fixed steps of one SIP period per tick; ticks happen every
-//! `sip_period / time_scale` of wall time, so with `time_scale = k` the robot runs k times faster
-//! than wall time. Everything the robot does is in simulated time: accelerations, the SIP period
-//! and the watchdog. A client talking to a scaled emulator must scale its own periods too
+//! Simulated time advances in fixed steps of one SIP period per tick. By default ticks happen
+//! every `sip_period / time_scale` of wall time, so with `time_scale = k` the robot runs k times
+//! faster than wall time. Everything the robot does is in simulated time: accelerations, the SIP
+//! period and the watchdog. A client talking to a scaled emulator must scale its own periods too
 //! (see [`crate::ClientConfig::scaled`]): with the default 1 s pulse and `time_scale` 10 the
 //! client must pulse every 100 ms of wall time, or the 2 s (simulated) watchdog, 200 ms of wall
 //! time, stops the robot. When the emulator task falls behind wall time, ticks are delayed, not
-//! bunched: simulated time then runs slower than `time_scale`, never jumps.
+//! bunched: simulated time then runs slower than `time_scale`, never jumps. A command and a tick
+//! that are ready at once are taken in that order (the command is in force for the tick).
+//!
+//! Lock-step mode ([`RobotEmulator::lock_step`]) replaces the wall-clock ticker: time advances
+//! only when the returned [`StepControl`] asks for ticks, and each request names how many bytes
+//! the emulator must have read (cumulatively, over all links) before it may tick. A simulator
+//! that passes the number of bytes its client has written therefore has every command it sent
+//! handled before the tick, however late the kernel delivers the bytes through a pty, and a run
+//! is a function of its inputs alone.
 
 use std::time::Duration;
 
@@ -18,7 +26,7 @@ use rand_distr::{Distribution, Normal};
 use rfloc_pose::{wrap_angle, Pose2};
 use thiserror::Error;
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
-use tokio::sync::watch;
+use tokio::sync::{mpsc, oneshot, watch};
 use tokio::time::MissedTickBehavior;
 use tracing::Instrument;
 
@@ -31,6 +39,10 @@ use crate::sip::{ConfigPacket, MotorSip, RobotIdentity, SipTail, SonarReading, S
 const SUBSTEPS: u32 = 10;
 
 /// Wheel slip applied to the ground-truth motion only (the encoders do not see it).
+///
+/// The draws of tick `k` (the k-th SIP period since the emulator was created) come from stream
+/// `k` of a ChaCha8 generator seeded with `seed`, so the slip is a function of simulated time:
+/// how long the emulator ran before a client connected or the robot moved does not change it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WheelSlip {
     /// Seed of the ChaCha8 generator.
@@ -147,6 +159,12 @@ pub struct EmulatorState {
     pub opens: u64,
     /// CLOSE commands received.
     pub closes: u64,
+    /// Bytes read from the links (all links served so far).
+    pub rx_bytes: u64,
+    /// Bytes written to the links (all links served so far).
+    pub tx_bytes: u64,
+    /// SIP periods simulated since the emulator was created.
+    pub ticks: u64,
 }
 
 /// Read-only view of a running emulator.
@@ -175,12 +193,68 @@ impl EmulatorHandle {
     }
 }
 
-/// Errors of [`RobotEmulator::serve`].
+/// Errors of [`RobotEmulator::serve`] and [`StepControl::advance`].
 #[derive(Debug, Error)]
 pub enum EmulatorError {
     /// Reading or writing the stream failed.
     #[error("emulator link i/o: {0}")]
     Io(#[from] std::io::Error),
+    /// The emulator is not serving (its task ended, or the link closed with a step pending).
+    #[error("emulator is not serving")]
+    NotServing,
+}
+
+/// One request of a [`StepControl`].
+#[derive(Debug)]
+struct StepRequest {
+    ticks: u32,
+    after_rx_bytes: u64,
+    done: oneshot::Sender<EmulatorState>,
+}
+
+/// Drives an emulator in lock-step mode (see [`RobotEmulator::lock_step`]). Cheap to clone.
+#[derive(Debug, Clone)]
+pub struct StepControl {
+    tx: mpsc::Sender<StepRequest>,
+}
+
+impl StepControl {
+    /// Simulates `ticks` SIP periods once the emulator has read at least `after_rx_bytes` bytes
+    /// (counted over every link it served) and handled every command in them; returns the state
+    /// after the last tick, once its SIP (if the connection is open) has been written.
+    ///
+    /// Pass the number of bytes the client has written so far: a command whose write returned
+    /// before this call is then in force for the ticks. A client that wants every SIP read at
+    /// the simulated time it was sent asks for one tick at a time and reads the SIP before the
+    /// next call.
+    ///
+    /// # Errors
+    /// [`EmulatorError::NotServing`] when the emulator is not serving a link, or stopped
+    /// serving (end of stream) before the ticks.
+    pub async fn advance(
+        &self,
+        ticks: u32,
+        after_rx_bytes: u64,
+    ) -> Result<EmulatorState, EmulatorError> {
+        let (done, rx) = oneshot::channel();
+        self.tx
+            .send(StepRequest {
+                ticks,
+                after_rx_bytes,
+                done,
+            })
+            .await
+            .map_err(|_| EmulatorError::NotServing)?;
+        rx.await.map_err(|_| EmulatorError::NotServing)
+    }
+}
+
+/// Waits for the next step request; never resolves without a receiver.
+async fn next_step(steps: &mut Option<mpsc::Receiver<StepRequest>>) -> Option<StepRequest> {
+    match steps {
+        Some(rx) => rx.recv().await,
+        None => std::future::pending().await,
+    }
 }
 
 /// Called with (current truth, proposed truth) for every motion step; returns the truth to
@@ -202,8 +276,12 @@ pub struct RobotEmulator {
     hook: Option<MotionHook>,
     state_tx: watch::Sender<EmulatorState>,
     st: EmulatorState,
-    rng: Option<(ChaCha8Rng, Normal<f64>)>,
+    /// Wheel slip: seed, distribution, and the generator of the current tick.
+    slip: Option<(u64, Normal<f64>, ChaCha8Rng)>,
     garbage_rng: ChaCha8Rng,
+    /// Lock-step mode: step requests (`None` once every [`StepControl`] is gone).
+    steps: Option<mpsc::Receiver<StepRequest>>,
+    lock_step: bool,
     // Robot state in robot units.
     v_mm: f64,
     w_deg: f64,
@@ -242,9 +320,9 @@ impl RobotEmulator {
             ..EmulatorState::default()
         };
         let (state_tx, _) = watch::channel(st);
-        let rng = config.slip.and_then(|s| {
+        let slip = config.slip.and_then(|s| {
             let normal = Normal::new(0.0, s.relative_std.abs()).ok()?;
-            Some((ChaCha8Rng::seed_from_u64(s.seed), normal))
+            Some((s.seed, normal, ChaCha8Rng::seed_from_u64(s.seed)))
         });
         let garbage_rng = ChaCha8Rng::seed_from_u64(config.noise_seed);
         Self {
@@ -261,8 +339,10 @@ impl RobotEmulator {
             hook: None,
             state_tx,
             st,
-            rng,
+            slip,
             garbage_rng,
+            steps: None,
+            lock_step: false,
             v_mm: 0.0,
             w_deg: 0.0,
             trans_set: 0.0,
@@ -282,6 +362,18 @@ impl RobotEmulator {
     pub fn with_motion_hook(mut self, hook: MotionHook) -> Self {
         self.hook = Some(hook);
         self
+    }
+
+    /// Switches to lock-step mode: from now on simulated time advances only through the
+    /// returned control (and its clones), never with wall time; `time_scale` is ignored. Call
+    /// again to replace the control (earlier ones then fail with
+    /// [`EmulatorError::NotServing`]).
+    #[must_use]
+    pub fn lock_step(&mut self) -> StepControl {
+        let (tx, rx) = mpsc::channel(4);
+        self.steps = Some(rx);
+        self.lock_step = true;
+        StepControl { tx }
     }
 
     /// A handle to read the state (ground truth) while [`RobotEmulator::serve`] runs.
@@ -316,7 +408,22 @@ impl RobotEmulator {
         result
     }
 
-    async fn serve_inner<S>(&mut self, mut stream: S) -> Result<(), EmulatorError>
+    async fn serve_inner<S>(&mut self, stream: S) -> Result<(), EmulatorError>
+    where
+        S: AsyncRead + AsyncWrite + Unpin + Send,
+    {
+        // The step receiver lives in `self` across links; borrow it out for this one.
+        let mut steps = self.steps.take();
+        let result = self.serve_link(stream, &mut steps).await;
+        self.steps = steps;
+        result
+    }
+
+    async fn serve_link<S>(
+        &mut self,
+        mut stream: S,
+        steps: &mut Option<mpsc::Receiver<StepRequest>>,
+    ) -> Result<(), EmulatorError>
     where
         S: AsyncRead + AsyncWrite + Unpin + Send,
     {
@@ -334,13 +441,30 @@ impl RobotEmulator {
         // A late emulator slows simulated time down rather than catching up in a burst, so a
         // stalled process cannot make the watchdog fire on a client that pulsed on time.
         ticker.set_missed_tick_behavior(MissedTickBehavior::Delay);
+        let wall_clock = !self.lock_step;
         let mut decoder = FrameDecoder::new();
         let mut buf = [0u8; 512];
+        let mut pending: Option<StepRequest> = None;
         // An earlier link may have been dropped mid-session (task aborted).
         self.link_ended();
         self.sync_stage = 0;
         loop {
+            if pending
+                .as_ref()
+                .is_some_and(|p| self.st.rx_bytes >= p.after_rx_bytes)
+            {
+                if let Some(req) = pending.take() {
+                    for _ in 0..req.ticks {
+                        self.tick(&mut stream).await?;
+                    }
+                    let _ = req.done.send(self.st);
+                }
+                continue;
+            }
+            // Biased: bytes already received are handled before a tick that is due at the same
+            // moment, so a command never loses a race against the ticker.
             tokio::select! {
+                biased;
                 r = stream.read(&mut buf) => {
                     let n = match r {
                         Ok(0) => return Ok(()),
@@ -351,38 +475,68 @@ impl RobotEmulator {
                     while let Some(r) = decoder.next_frame() {
                         if let Ok(frame) = r {
                             let replies = self.handle_frame(&frame);
+                            let mut out = Vec::new();
                             for reply in replies {
                                 if let Ok(bytes) = reply.encode() {
-                                    stream.write_all(&bytes).await?;
+                                    out.extend_from_slice(&bytes);
                                 }
                             }
-                            stream.flush().await?;
+                            if !out.is_empty() {
+                                self.write_out(&mut stream, &out).await?;
+                            }
                         }
                     }
+                    self.st.rx_bytes += n as u64;
                     self.st.dropped_bytes = decoder.dropped_bytes();
                     self.publish();
                 }
-                _ = ticker.tick() => {
-                    self.step_period();
-                    if self.st.open {
-                        let mut out = Vec::new();
-                        self.push_garbage(&mut out);
-                        if let Ok(b) = self.motor_sip().to_frame().encode() {
-                            out.extend_from_slice(&b);
-                        }
-                        if self.encoder_stream {
-                            if let Ok(b) = self.encoder_packet().encode() {
-                                out.extend_from_slice(&b);
-                            }
-                        }
-                        self.st.sips_sent += 1;
-                        stream.write_all(&out).await?;
-                        stream.flush().await?;
-                    }
-                    self.publish();
-                }
+                req = next_step(steps), if !wall_clock && pending.is_none() => match req {
+                    Some(req) => pending = Some(req),
+                    // Every control is gone: time stands still, the link is still served.
+                    None => *steps = None,
+                },
+                _ = ticker.tick(), if wall_clock => self.tick(&mut stream).await?,
             }
         }
+    }
+
+    /// One SIP period: simulate, publish the new state, then send the SIP. Publishing first
+    /// means a reader of the simulated clock never sees a SIP stamped with the previous time.
+    async fn tick<S>(&mut self, stream: &mut S) -> Result<(), EmulatorError>
+    where
+        S: AsyncWrite + Unpin,
+    {
+        self.step_period();
+        if self.st.open {
+            let mut out = Vec::new();
+            self.push_garbage(&mut out);
+            if let Ok(b) = self.motor_sip().to_frame().encode() {
+                out.extend_from_slice(&b);
+            }
+            if self.encoder_stream {
+                if let Ok(b) = self.encoder_packet().encode() {
+                    out.extend_from_slice(&b);
+                }
+            }
+            self.st.sips_sent += 1;
+            self.st.tx_bytes += out.len() as u64;
+            self.publish();
+            stream.write_all(&out).await?;
+            stream.flush().await?;
+        } else {
+            self.publish();
+        }
+        Ok(())
+    }
+
+    async fn write_out<S>(&mut self, stream: &mut S, bytes: &[u8]) -> Result<(), EmulatorError>
+    where
+        S: AsyncWrite + Unpin,
+    {
+        self.st.tx_bytes += bytes.len() as u64;
+        stream.write_all(bytes).await?;
+        stream.flush().await?;
+        Ok(())
     }
 
     /// The link is gone: stop at once; an open connection stays open with its watchdog tripped.
@@ -574,10 +728,16 @@ impl RobotEmulator {
             self.st.watchdog_tripped = true;
             self.st.watchdog_trips += 1;
         }
+        if let Some((seed, _, rng)) = &mut self.slip {
+            let mut fresh = ChaCha8Rng::seed_from_u64(*seed);
+            fresh.set_stream(self.st.ticks);
+            *rng = fresh;
+        }
         for _ in 0..SUBSTEPS {
             self.substep(dt);
         }
-        self.st.sim_time += period;
+        self.st.ticks += 1;
+        self.st.sim_time = self.st.ticks as f64 * period;
     }
 
     fn targets(&self) -> (f64, f64) {
@@ -616,8 +776,8 @@ impl RobotEmulator {
         let (left, right) = (v - w * half_track, v + w * half_track);
         let nominal = arc(v * dt, w * dt);
         // Ground truth: wheels may slip.
-        let (gl, gr) = match &mut self.rng {
-            Some((rng, normal)) => (
+        let (gl, gr) = match &mut self.slip {
+            Some((_, normal, rng)) => (
                 left * (1.0 + normal.sample(rng)),
                 right * (1.0 + normal.sample(rng)),
             ),
@@ -886,5 +1046,41 @@ mod tests {
         let (t2, _) = run();
         assert_eq!(t1, t2);
         assert!(t1.distance(&o1) > 1e-4);
+    }
+
+    #[test]
+    fn slip_of_a_tick_does_not_depend_on_earlier_draws() {
+        let cfg = EmulatorConfig {
+            slip: Some(WheelSlip {
+                seed: 11,
+                relative_std: 0.05,
+            }),
+            ..EmulatorConfig::default()
+        };
+        let run = |burn: usize| {
+            let mut e = opened(cfg.clone());
+            if let Some((_, _, rng)) = &mut e.slip {
+                for _ in 0..burn {
+                    let _: u64 = rng.random();
+                }
+            }
+            e.handle_frame(&Command::Vel(400).to_frame(&Default::default()).unwrap());
+            for _ in 0..20 {
+                e.step_period();
+            }
+            e.st.truth
+        };
+        // Draws taken before the first tick (e.g. by another link's history) change nothing.
+        assert_eq!(run(0), run(1000));
+    }
+
+    #[test]
+    fn ticks_count_simulated_time() {
+        let mut e = RobotEmulator::new(EmulatorConfig::default());
+        for _ in 0..30 {
+            e.step_period();
+        }
+        assert_eq!(e.st.ticks, 30);
+        assert_eq!(e.st.sim_time, 30.0 * 0.1);
     }
 }

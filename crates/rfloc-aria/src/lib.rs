@@ -28,7 +28,7 @@ pub use client::{
 pub use command::{Arg, ArgError, Command, CommandError, CommandLimits, LinkPhase};
 pub use emulator::{
     EmulatorConfig, EmulatorError, EmulatorHandle, EmulatorState, MotionHook, RobotEmulator,
-    WheelSlip,
+    StepControl, WheelSlip,
 };
 pub use frame::{checksum, EncodeError, Frame, FrameDecoder, FrameError};
 pub use mock_base::{MockBase, MockBaseCall};

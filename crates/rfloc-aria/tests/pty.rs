@@ -25,12 +25,17 @@ fn emulator_config() -> EmulatorConfig {
 
 /// The client's periods scaled to the emulator; the pulse comes every 250 ms of simulated time
 /// (an eighth of the watchdog) so that a briefly descheduled test process does not trip it.
+/// The link timeout keeps a 1 s wall-time floor (see `long_run_crosses_the_15_bit_wrap_on_a_p3dx`).
 fn client_config() -> ClientConfig {
-    ClientConfig {
+    let scaled = ClientConfig {
         pulse_period: Duration::from_millis(250),
         ..ClientConfig::default()
     }
-    .scaled(SCALE)
+    .scaled(SCALE);
+    ClientConfig {
+        link_timeout: scaled.link_timeout.max(Duration::from_secs(1)),
+        ..scaled
+    }
 }
 
 /// Starts an emulator on one end of a pty pair and returns the other end.
@@ -414,9 +419,16 @@ async fn long_run_crosses_the_15_bit_wrap_on_a_p3dx() {
     };
     config.identity.subclass = "p3dx".into();
     let (host, emu, _task) = spawn_emulator(config);
-    let client = AriaClient::from_stream(host, ClientConfig::default().scaled(scale))
-        .await
-        .unwrap();
+    // Link and handshake timeouts keep wall-time floors: fully scaled, the link timeout is
+    // 40 ms of wall time, and a test process descheduled that long on a loaded machine lost
+    // the link; this single-use link cannot reconnect, the client closed its end, and the
+    // emulator's read failed (EIO from the pty master) — seen once as a flaky run.
+    let client_config = ClientConfig {
+        link_timeout: Duration::from_secs(2),
+        sync_timeout: Duration::from_secs(1),
+        ..ClientConfig::default().scaled(scale)
+    };
+    let client = AriaClient::from_stream(host, client_config).await.unwrap();
     assert!((client.factors().dist_conv - 0.485).abs() < 1e-12);
     let mut rx = client.odometry();
     client.set_velocity(2.0, 0.0).await.unwrap();
@@ -428,4 +440,143 @@ async fn long_run_crosses_the_15_bit_wrap_on_a_p3dx() {
     assert!(truth.x > 20.0);
     assert!(odo.pose.distance(&truth) < 0.01);
     client.shutdown().await.unwrap();
+}
+
+/// Counts the bytes the client has written to its end of the pty (the lock-step barrier).
+struct CountingIo<T> {
+    inner: T,
+    written: Arc<std::sync::atomic::AtomicU64>,
+}
+
+impl<T: tokio::io::AsyncRead + Unpin> tokio::io::AsyncRead for CountingIo<T> {
+    fn poll_read(
+        mut self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+        buf: &mut tokio::io::ReadBuf<'_>,
+    ) -> std::task::Poll<std::io::Result<()>> {
+        std::pin::Pin::new(&mut self.inner).poll_read(cx, buf)
+    }
+}
+
+impl<T: tokio::io::AsyncWrite + Unpin> tokio::io::AsyncWrite for CountingIo<T> {
+    fn poll_write(
+        mut self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+        buf: &[u8],
+    ) -> std::task::Poll<std::io::Result<usize>> {
+        let r = std::pin::Pin::new(&mut self.inner).poll_write(cx, buf);
+        if let std::task::Poll::Ready(Ok(n)) = &r {
+            self.written
+                .fetch_add(*n as u64, std::sync::atomic::Ordering::SeqCst);
+        }
+        r
+    }
+    fn poll_flush(
+        mut self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+    ) -> std::task::Poll<std::io::Result<()>> {
+        std::pin::Pin::new(&mut self.inner).poll_flush(cx)
+    }
+    fn poll_shutdown(
+        mut self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+    ) -> std::task::Poll<std::io::Result<()>> {
+        std::pin::Pin::new(&mut self.inner).poll_shutdown(cx)
+    }
+}
+
+/// One scripted lock-step session: a command right before every tick (alternating speeds), the
+/// SIP of each tick read before the next; returns the odometry and truth of every tick.
+async fn lock_step_session() -> (Vec<Pose2>, Vec<Pose2>, rfloc_aria::EmulatorState) {
+    let (host, robot) = SerialStream::pair().expect("pty pair");
+    let mut emu = RobotEmulator::new(EmulatorConfig {
+        slip: Some(rfloc_aria::WheelSlip {
+            seed: 5,
+            relative_std: 0.05,
+        }),
+        ..EmulatorConfig::default()
+    });
+    let control = emu.lock_step();
+    let handle = emu.handle();
+    let task = tokio::spawn(async move {
+        emu.serve(robot).await.expect("emulator serve");
+    });
+    let written = Arc::new(std::sync::atomic::AtomicU64::new(0));
+    let io = CountingIo {
+        inner: host,
+        written: Arc::clone(&written),
+    };
+    // No keep-alive on wall time: every byte on the link is one the test sent.
+    let config = ClientConfig {
+        pulse_period: Duration::from_secs(3600),
+        link_timeout: Duration::from_secs(3600),
+        close_linger: Duration::ZERO,
+        ..ClientConfig::default()
+    };
+    let client = AriaClient::from_stream(io, config).await.unwrap();
+    let mut rx = client.odometry();
+    let (mut odometry, mut truth) = (Vec::new(), Vec::new());
+    for k in 0..40u32 {
+        let v = if (k / 5) % 2 == 0 { 0.4 } else { 0.1 };
+        client.set_velocity(v, 0.2).await.unwrap();
+        let barrier = written.load(std::sync::atomic::Ordering::SeqCst);
+        let st = tokio::time::timeout(Duration::from_secs(10), control.advance(1, barrier))
+            .await
+            .expect("tick")
+            .unwrap();
+        let o = wait_odometry(&mut rx, "the tick's SIP", |o| o.seq >= st.sips_sent).await;
+        odometry.push(o.pose);
+        truth.push(st.truth);
+    }
+    let state = handle.state();
+    client.shutdown().await.unwrap();
+    task.abort();
+    (odometry, truth, state)
+}
+
+#[tokio::test]
+async fn lock_step_runs_are_identical() {
+    let (o1, t1, s1) = lock_step_session().await;
+    let (o2, t2, s2) = lock_step_session().await;
+    assert_eq!(o1, o2);
+    assert_eq!(t1, t2);
+    // Every command was handled before the tick it preceded: 40 × (VEL, RVEL), time is
+    // exactly 40 ticks, and the robot moved (with slip, the truth left the odometry).
+    assert_eq!(s1.commands, s2.commands);
+    assert_eq!(s1.ticks, 40);
+    assert_eq!(s1.sips_sent, 40);
+    assert!((s1.sim_time - 4.0).abs() < 1e-12);
+    assert!(o1.last().unwrap().x.hypot(o1.last().unwrap().y) > 0.3);
+    assert!(t1.last().unwrap().distance(&s1.odometry) > 0.0);
+}
+
+#[tokio::test]
+async fn lock_step_emulator_stands_still_without_steps() {
+    let (host, robot) = SerialStream::pair().expect("pty pair");
+    let mut emu = RobotEmulator::new(EmulatorConfig::default());
+    let control = emu.lock_step();
+    let handle = emu.handle();
+    let task = tokio::spawn(async move {
+        emu.serve(robot).await.expect("emulator serve");
+    });
+    let config = ClientConfig {
+        pulse_period: Duration::from_secs(3600),
+        link_timeout: Duration::from_secs(3600),
+        close_linger: Duration::ZERO,
+        ..ClientConfig::default()
+    };
+    // The handshake is answered without any tick.
+    let client = AriaClient::from_stream(host, config).await.unwrap();
+    client.set_velocity(0.5, 0.0).await.unwrap();
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let st = handle.state();
+    assert!(st.open);
+    assert_eq!((st.ticks, st.sips_sent, st.sim_time), (0, 0, 0.0));
+    // A barrier beyond what was written holds the tick back.
+    let far = st.rx_bytes + 1;
+    let held = tokio::time::timeout(Duration::from_millis(300), control.advance(1, far)).await;
+    assert!(held.is_err(), "ticked before the barrier");
+    assert_eq!(handle.state().ticks, 0);
+    client.shutdown().await.unwrap();
+    task.abort();
 }
