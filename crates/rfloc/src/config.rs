@@ -49,14 +49,21 @@ pub struct DeviceConfig {
     /// Absent only for GPIO devices (stepper) and in simulation configs, where the daemon
     /// attaches an emulator.
     pub link: Option<LinkConfig>,
-    /// Seconds without data before the device counts as stale and poses degrade.
-    #[serde(default = "default_stale_after")]
-    pub stale_after_s: f64,
+    /// Seconds without data before the device counts as stale and poses degrade. Default 3 s;
+    /// 60 s for an XBee radio, which speaks only when the pipeline asks for a sweep.
+    pub stale_after_s: Option<f64>,
     pub driver: DriverConfig,
 }
 
-fn default_stale_after() -> f64 {
-    3.0
+impl DeviceConfig {
+    /// [`DeviceConfig::stale_after_s`] with its per-driver default.
+    #[must_use]
+    pub fn stale_after(&self) -> f64 {
+        self.stale_after_s.unwrap_or(match self.driver {
+            DriverConfig::Xbee(_) => 60.0,
+            _ => 3.0,
+        })
+    }
 }
 
 /// Driver settings, tagged by `kind`.
@@ -130,8 +137,6 @@ fn default_reads() -> u32 {
     3
 }
 
-// Validated now; read by the device task / pipeline once it is wired into `rfloc run`.
-#[allow(dead_code)]
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct XbeeSettings {
@@ -149,8 +154,8 @@ fn default_nt() -> f64 {
     2.0
 }
 
-// Validated now; read by the device task / pipeline once it is wired into `rfloc run`.
-#[allow(dead_code)]
+/// The GPIO stepper that turns the XBee radio's reflector. Lines are given by name (as
+/// `gpioinfo` lists them) or by offset on the chip.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct StepperSettings {
@@ -158,9 +163,20 @@ pub struct StepperSettings {
     pub step_line: String,
     pub dir_line: String,
     pub enable_line: Option<String>,
+    /// Full steps per motor revolution.
     pub steps_per_rev: u32,
+    /// Microsteps per full step set on the driver.
+    #[serde(default = "default_microsteps")]
+    pub microsteps: u32,
+    /// Motor revolutions per antenna revolution.
     #[serde(default = "default_gear")]
     pub gear_ratio: f64,
+    /// Swap the DIR level so that positive angles turn counter-clockwise seen from above.
+    #[serde(default)]
+    pub invert_direction: bool,
+}
+fn default_microsteps() -> u32 {
+    1
 }
 fn default_gear() -> f64 {
     1.0
@@ -234,8 +250,6 @@ fn default_offset() -> f64 {
 }
 
 /// Parameters of the XBee EKF-SLAM pipeline (seed 003 Table 3.1 defaults).
-// Validated now; read by the device task / pipeline once it is wired into `rfloc run`.
-#[allow(dead_code)]
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct EkfSlamSettings {
@@ -251,9 +265,74 @@ pub struct EkfSlamSettings {
     /// Sweep step of the antenna (degrees; seed 003: 9).
     #[serde(default = "default_step")]
     pub sweep_step_deg: f64,
-    /// Waypoints to drive through, metres.
+    /// Waypoints to drive through, metres (map frame). Empty: the pipeline never moves the
+    /// base and sweeps whenever the base has stood still for a second.
     #[serde(default)]
     pub waypoints: Vec<[f64; 2]>,
+    /// Pose of the robot in the map frame when the daemon starts: x, y (m), heading (deg).
+    #[serde(default)]
+    pub start: [f64; 3],
+    /// Driving time between two sweeps, seconds (the robot stops to sweep).
+    #[serde(default = "default_sweep_every")]
+    pub sweep_every_s: f64,
+    /// A sweep not reported within this many seconds is given up and driving resumes.
+    #[serde(default = "default_sweep_timeout")]
+    pub sweep_timeout_s: f64,
+    /// σ of a range derived from RSSI, metres (seed 003 Table 3.1: 2).
+    #[serde(default = "default_range_sigma")]
+    pub range_sigma_m: f64,
+    /// σ of a peak RSSI reading, dB (shadowing and fast fading; seed 003 Table 4.1: ≈ 3.16).
+    #[serde(default = "default_rssi_sigma")]
+    pub rssi_sigma_db: f64,
+    /// Added in quadrature to the fitted bearing's σ, degrees (antenna pattern mismatch).
+    #[serde(default = "default_bearing_floor")]
+    pub bearing_floor_deg: f64,
+    /// A beacon first seen is mapped once its triangulated position's largest σ is below
+    /// this, metres.
+    #[serde(default = "default_beacon_init_std")]
+    pub beacon_init_max_std_m: f64,
+    /// Waypoint switching distance ρ_min, metres.
+    #[serde(default = "default_waypoint_switch")]
+    pub waypoint_switch_m: f64,
+    /// Cruise speed, m/s.
+    #[serde(default = "default_max_speed")]
+    pub max_speed_mps: f64,
+    /// Odometry translation error per metre travelled (σ, dimensionless).
+    #[serde(default = "default_odometry_trans")]
+    pub odometry_trans_per_m: f64,
+    /// Odometry heading error per radian turned (σ, dimensionless).
+    #[serde(default = "default_odometry_rot")]
+    pub odometry_rot_per_rad: f64,
+}
+fn default_sweep_every() -> f64 {
+    3.0
+}
+fn default_sweep_timeout() -> f64 {
+    120.0
+}
+fn default_range_sigma() -> f64 {
+    2.0
+}
+fn default_rssi_sigma() -> f64 {
+    3.16
+}
+fn default_bearing_floor() -> f64 {
+    3.0
+}
+fn default_beacon_init_std() -> f64 {
+    0.5
+}
+fn default_waypoint_switch() -> f64 {
+    0.3
+}
+fn default_max_speed() -> f64 {
+    0.3
+}
+fn default_odometry_trans() -> f64 {
+    0.02
+}
+fn default_odometry_rot() -> f64 {
+    0.02
 }
 fn default_p_ref() -> f64 {
     -29.0
@@ -396,6 +475,12 @@ pub struct SimulationConfig {
     /// Start pose of the simulated robot (metres, degrees).
     #[serde(default)]
     pub start: [f64; 3],
+    /// Scenario file whose world (XBee beacons) and sensor models the emulated XBee radio
+    /// uses, relative to the robot file. Needed when the robot has an XBee device.
+    pub scenario: Option<PathBuf>,
+    /// Relative σ of each wheel's ground speed per emulator substep (10 ms); 0 = no slip.
+    #[serde(default)]
+    pub slip_sigma: f64,
 }
 fn default_time_scale() -> f64 {
     1.0
@@ -504,7 +589,7 @@ impl RobotConfig {
                     format!("duplicate device name {:?}", d.name),
                 ));
             }
-            if !(d.stale_after_s.is_finite() && d.stale_after_s > 0.0) {
+            if !(d.stale_after().is_finite() && d.stale_after() > 0.0) {
                 return Err(err(
                     &format!("device[{i}].stale_after_s"),
                     "must be a positive number of seconds".into(),
@@ -553,6 +638,23 @@ impl RobotConfig {
                         "must be 1 or 2".into(),
                     ));
                 }
+                if !(0.1..=25.5).contains(&x.discovery_timeout_s) {
+                    return Err(err(
+                        &format!("device[{i}].driver.discovery_timeout_s"),
+                        "must be in [0.1, 25.5] seconds (NT)".into(),
+                    ));
+                }
+            }
+            if let DriverConfig::Stepper(st) = &d.driver {
+                if st.steps_per_rev == 0
+                    || st.microsteps == 0
+                    || !(st.gear_ratio.is_finite() && st.gear_ratio > 0.0)
+                {
+                    return Err(err(
+                        &format!("device[{i}].driver"),
+                        "steps_per_rev and microsteps must be ≥ 1 and gear_ratio positive".into(),
+                    ));
+                }
             }
         }
         for need in self.estimator.required_drivers() {
@@ -588,6 +690,44 @@ impl RobotConfig {
                     "must be in (0, 90] degrees".into(),
                 ));
             }
+            for (key, value) in [
+                ("sweep_every_s", e.sweep_every_s),
+                ("sweep_timeout_s", e.sweep_timeout_s),
+                ("range_sigma_m", e.range_sigma_m),
+                ("rssi_sigma_db", e.rssi_sigma_db),
+                ("beacon_init_max_std_m", e.beacon_init_max_std_m),
+                ("waypoint_switch_m", e.waypoint_switch_m),
+                ("max_speed_mps", e.max_speed_mps),
+                ("path_loss_exponent", e.path_loss_exponent),
+            ] {
+                if !(value.is_finite() && value > 0.0) {
+                    return Err(err(
+                        &format!("estimator.{key}"),
+                        format!("must be a positive number, not {value}"),
+                    ));
+                }
+            }
+            for (key, value) in [
+                ("bearing_floor_deg", e.bearing_floor_deg),
+                ("odometry_trans_per_m", e.odometry_trans_per_m),
+                ("odometry_rot_per_rad", e.odometry_rot_per_rad),
+            ] {
+                if !(value.is_finite() && value >= 0.0) {
+                    return Err(err(
+                        &format!("estimator.{key}"),
+                        format!("must be zero or positive, not {value}"),
+                    ));
+                }
+            }
+            if !(e.p_ref_dbm.is_finite()
+                && e.start.iter().all(|v| v.is_finite())
+                && e.waypoints.iter().flatten().all(|v| v.is_finite()))
+            {
+                return Err(err(
+                    "estimator",
+                    "p_ref_dbm, start and waypoints must be finite numbers".into(),
+                ));
+            }
         }
         if let EstimatorConfig::Snapshot(s) = &self.estimator {
             if !matches!(s.clustering.as_str(), "kmedoids" | "threshold") {
@@ -606,6 +746,28 @@ impl RobotConfig {
         if let Some(sim) = &self.simulation {
             if !(sim.time_scale.is_finite() && sim.time_scale > 0.0 && sim.time_scale <= 1000.0) {
                 return Err(err("simulation.time_scale", "must be in (0, 1000]".into()));
+            }
+            if !(sim.slip_sigma.is_finite() && (0.0..1.0).contains(&sim.slip_sigma)) {
+                return Err(err("simulation.slip_sigma", "must be in [0, 1)".into()));
+            }
+            let has_xbee = self
+                .devices
+                .iter()
+                .any(|d| matches!(d.driver, DriverConfig::Xbee(_)));
+            match &sim.scenario {
+                None if has_xbee => {
+                    return Err(err(
+                        "simulation.scenario",
+                        "an emulated XBee radio needs a scenario file with beacons".into(),
+                    ))
+                }
+                Some(p) if check_devices => {
+                    let path = base.map_or_else(|| p.clone(), |b| b.join(p));
+                    if let Err(e) = rfloc_sim::Scenario::load(&path) {
+                        return Err(err("simulation.scenario", format!("{e}")));
+                    }
+                }
+                _ => {}
             }
             if !matches!(sim.motion.as_str(), "turn" | "square" | "still") {
                 return Err(err(

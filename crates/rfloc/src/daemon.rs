@@ -114,7 +114,6 @@ pub fn backoff(attempt: u32) -> Duration {
 pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
     let stop = CancellationToken::new();
     spawn_signal_handler(stop.clone());
-    let clock: SharedClock = Arc::new(MonotonicClock::new());
     let capture_dir = opts
         .capture_dir
         .clone()
@@ -149,14 +148,31 @@ pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
     let mut cfg = cfg;
     let mut sim = None;
     if let Some(sim_cfg) = cfg.simulation.clone() {
-        sim = Some(crate::sim::start(&mut cfg, &sim_cfg, stop.clone()).await?);
+        sim = Some(crate::sim::start(&mut cfg, &sim_cfg, opts.config_dir.as_deref()).await?);
     }
     let time_scale = cfg.simulation.as_ref().map_or(1.0, |s| s.time_scale);
+    // Timestamps: the emulated robot's simulated seconds in a simulation (so that times and
+    // the motion they describe agree at any time scale), the monotonic clock on a robot.
+    let clock: SharedClock = sim
+        .as_ref()
+        .and_then(crate::sim::SimRuntime::clock)
+        .unwrap_or_else(|| Arc::new(MonotonicClock::new()));
+    let mut antenna = sim
+        .as_mut()
+        .and_then(crate::sim::SimRuntime::take_stepper)
+        .map(devices::AntennaSource::Simulated)
+        .or_else(|| {
+            cfg.devices.iter().find_map(|d| match &d.driver {
+                DriverConfig::Stepper(s) => Some(devices::AntennaSource::Gpio(s.clone())),
+                _ => None,
+            })
+        });
 
     // Device tasks.
     let (ev_tx, mut ev_rx) = mpsc::channel::<DeviceEvent>(1024);
     let mut device_tasks = Vec::new();
     let mut motion = None;
+    let mut sweeps = None;
     for device in &cfg.devices {
         let ctx = DeviceContext {
             device: device.clone(),
@@ -169,16 +185,30 @@ pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
         };
         let span =
             tracing::info_span!("device", name = %device.name, driver = device.driver.kind());
-        let (task, handle) = devices::spawn(ctx, span.clone());
-        if handle.is_some() {
-            motion = handle;
+        let sweep = match &device.driver {
+            DriverConfig::Xbee(_) => antenna.take().map(|antenna| devices::SweepSetup {
+                antenna,
+                scan: pipeline::scan_config(&cfg.estimator),
+            }),
+            _ => None,
+        };
+        let spawned = devices::spawn(ctx, span.clone(), sweep);
+        if spawned.motion.is_some() {
+            motion = spawned.motion;
         }
-        device_tasks.push(task);
+        if spawned.sweeps.is_some() {
+            sweeps = spawned.sweeps;
+        }
+        device_tasks.push(spawned.task);
     }
     drop(ev_tx);
 
     if let (Some(sim), Some(base)) = (&sim, &motion) {
-        crate::sim::drive(sim, base.clone(), stop.clone());
+        if pipeline::drives_base(&cfg.estimator) {
+            tracing::info!("the pipeline drives the simulated base; no motion script");
+        } else {
+            crate::sim::drive(sim, base.clone(), stop.clone());
+        }
     }
 
     notify::ready();
@@ -198,7 +228,7 @@ pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
         .map(|d| {
             (
                 d.name.clone(),
-                Duration::from_secs_f64(d.stale_after_s / time_scale.max(1e-6)),
+                Duration::from_secs_f64(d.stale_after() / time_scale.max(1e-6)),
             )
         })
         .collect();
@@ -254,7 +284,11 @@ pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
                 let driver = driver_of.get(name.as_str()).copied().unwrap_or("?");
                 hub.publish_device(&name, message::device_json(&name, driver, DeviceState::Connected, "data again", SystemTime::now()));
             }
-            if let Some(mut est) = estimator.handle(&event) {
+            let estimate = estimator.handle(&event);
+            for request in estimator.take_requests() {
+                route(request, motion.as_ref(), sweeps.as_ref());
+            }
+            if let Some(mut est) = estimate {
                 if stale.values().any(|s| *s) && est.mode == EstimateMode::Fix {
                     est.mode = EstimateMode::Degraded;
                 }
@@ -297,6 +331,26 @@ pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
     }
     tracing::info!(slow_clients_dropped = hub.dropped_clients(), "stopped");
     Ok(())
+}
+
+/// Hands a pipeline's request to the device task that can act on it. Never waits: a full
+/// queue drops the request (the pipeline asks again on its next event) with a warning.
+fn route(
+    request: pipeline::Request,
+    motion: Option<&devices::MotionSender>,
+    sweeps: Option<&mpsc::Sender<devices::SweepRequest>>,
+) {
+    let sent = match request {
+        pipeline::Request::Velocity { v, w } => motion.map(|m| m.try_send((v, w)).is_ok()),
+        pipeline::Request::Sweep { heading_rad } => {
+            sweeps.map(|s| s.try_send(devices::SweepRequest { heading_rad }).is_ok())
+        }
+    };
+    match sent {
+        Some(true) => {}
+        Some(false) => tracing::warn!(?request, "device busy; request dropped"),
+        None => tracing::warn!(?request, "no device can carry out this request"),
+    }
 }
 
 /// Prints one line on stdout; false when stdout is gone.

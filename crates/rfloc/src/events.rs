@@ -32,6 +32,13 @@ pub enum DeviceEvent {
         t: f64,
         tags: Vec<(String, f64)>,
     },
+    /// One antenna sweep of the XBee radio (seed 003): each beacon's peak RSSI and fitted
+    /// bearing, or why the sweep was abandoned.
+    Sweep {
+        device: String,
+        t: f64,
+        result: Result<Vec<SweptBeacon>, String>,
+    },
     /// A marker from a capture or a motion script, e.g. `stop 3 heading_deg=135`.
     Mark {
         device: String,
@@ -47,6 +54,19 @@ pub enum DeviceEvent {
     },
 }
 
+/// What one sweep says about one beacon.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SweptBeacon {
+    /// The beacon's 64-bit address.
+    pub id: u64,
+    /// Strongest RSSI over the sweep, dBm.
+    pub peak_rssi_dbm: f64,
+    /// Bearing of the beacon from the robot's forward direction, radians (counter-clockwise).
+    pub bearing_rad: f64,
+    /// Variance of that bearing from the peak fit, rad².
+    pub bearing_variance_rad2: f64,
+}
+
 impl DeviceEvent {
     /// The device this event came from.
     #[must_use]
@@ -55,6 +75,7 @@ impl DeviceEvent {
             DeviceEvent::Odometry { device, .. }
             | DeviceEvent::HfTag { device, .. }
             | DeviceEvent::UhfSnapshot { device, .. }
+            | DeviceEvent::Sweep { device, .. }
             | DeviceEvent::Mark { device, .. }
             | DeviceEvent::Status { device, .. } => device,
         }
@@ -87,6 +108,7 @@ impl DeviceEvent {
             DeviceEvent::Odometry { t, .. }
             | DeviceEvent::HfTag { t, .. }
             | DeviceEvent::UhfSnapshot { t, .. }
+            | DeviceEvent::Sweep { t, .. }
             | DeviceEvent::Mark { t, .. } => Some(*t),
             DeviceEvent::Status { .. } => None,
         }

@@ -148,13 +148,6 @@ fn main() -> ExitCode {
             no_device_check,
         } => match load_config_with(&config, !no_device_check) {
             Ok(cfg) => {
-                if !pipeline::is_wired(&cfg.estimator) {
-                    eprintln!(
-                        "rfloc: warning: {}: pipeline {} is not wired into the daemon yet; it will run its devices but publish no poses",
-                        config.display(),
-                        cfg.estimator.name()
-                    );
-                }
                 println!(
                     "{}: ok (robot {:?}, {} device(s), pipeline {})",
                     config.display(),

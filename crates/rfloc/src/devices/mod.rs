@@ -13,42 +13,56 @@ use crate::message::DeviceState;
 mod alien;
 mod aria;
 mod kts;
+mod xbee;
+
+pub use xbee::{AntennaSource, SweepRequest, SweepSetup};
 
 /// A velocity command for the base: (m/s, rad/s).
 pub type MotionSender = mpsc::Sender<(f64, f64)>;
 
-/// Spawns the task of one device. Returns the task and, for a mobile base, a motion sender.
-pub fn spawn(ctx: DeviceContext, span: tracing::Span) -> (JoinHandle<()>, Option<MotionSender>) {
+/// A running device task and the channels other parts of the daemon use to command it.
+pub struct SpawnedDevice {
+    pub task: JoinHandle<()>,
+    /// For a mobile base.
+    pub motion: Option<MotionSender>,
+    /// For a radio that sweeps a turning antenna.
+    pub sweeps: Option<mpsc::Sender<SweepRequest>>,
+}
+
+/// Spawns the task of one device. An XBee radio takes `sweep` (its antenna rotator and scan
+/// settings); a stepper has no task of its own (the radio's task drives it).
+pub fn spawn(ctx: DeviceContext, span: tracing::Span, sweep: Option<SweepSetup>) -> SpawnedDevice {
+    let plain = |task| SpawnedDevice {
+        task,
+        motion: None,
+        sweeps: None,
+    };
     match ctx.device.driver.clone() {
         DriverConfig::Aria(s) => {
             let (tx, rx) = mpsc::channel(16);
-            (
-                tokio::spawn(aria::run(ctx, s, rx).instrument(span)),
-                Some(tx),
-            )
+            SpawnedDevice {
+                task: tokio::spawn(aria::run(ctx, s, rx).instrument(span)),
+                motion: Some(tx),
+                sweeps: None,
+            }
         }
-        DriverConfig::Kts(s) => (tokio::spawn(kts::run(ctx, s).instrument(span)), None),
-        DriverConfig::Alien(s) => (tokio::spawn(alien::run(ctx, s).instrument(span)), None),
-        other => {
-            let kind = other.kind();
-            (
-                tokio::spawn(
-                    async move {
-                        tracing::error!(
-                            driver = kind,
-                            "driver not wired into the daemon yet; device ignored"
-                        );
-                        ctx.status(
-                            DeviceState::Closed,
-                            format!("driver {kind} not available in this build"),
-                        )
-                        .await;
-                    }
-                    .instrument(span),
-                ),
-                None,
-            )
+        DriverConfig::Kts(s) => plain(tokio::spawn(kts::run(ctx, s).instrument(span))),
+        DriverConfig::Alien(s) => plain(tokio::spawn(alien::run(ctx, s).instrument(span))),
+        DriverConfig::Xbee(s) => {
+            let (tx, rx) = mpsc::channel(1);
+            SpawnedDevice {
+                task: tokio::spawn(xbee::run(ctx, s, sweep, rx).instrument(span)),
+                motion: None,
+                sweeps: Some(tx),
+            }
         }
+        DriverConfig::Stepper(_) => plain(tokio::spawn(
+            async move {
+                ctx.status(DeviceState::Connected, "driven by the XBee sweep task")
+                    .await;
+            }
+            .instrument(span),
+        )),
     }
 }
 

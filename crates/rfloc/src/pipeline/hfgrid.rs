@@ -263,7 +263,9 @@ impl HfGridPipeline {
                 }
                 None
             }
-            DeviceEvent::Status { .. } | DeviceEvent::UhfSnapshot { .. } => None,
+            DeviceEvent::Status { .. }
+            | DeviceEvent::UhfSnapshot { .. }
+            | DeviceEvent::Sweep { .. } => None,
         }
     }
 }
@@ -309,7 +311,8 @@ impl Pipeline for HfGridPipeline {
                 }
                 DeviceEvent::Mark { .. }
                 | DeviceEvent::Status { .. }
-                | DeviceEvent::UhfSnapshot { .. } => None,
+                | DeviceEvent::UhfSnapshot { .. }
+                | DeviceEvent::Sweep { .. } => None,
             },
         }
     }

@@ -5,10 +5,12 @@ use rfloc_pose::PoseEstimate;
 use crate::config::EstimatorConfig;
 use crate::events::DeviceEvent;
 
+mod ekfslam;
 mod hfgrid;
 mod odometry;
 mod snapshot;
 
+pub use ekfslam::EkfSlamPipeline;
 pub use hfgrid::HfGridPipeline;
 pub use odometry::OdometryPipeline;
 pub use snapshot::SnapshotPipeline;
@@ -19,6 +21,20 @@ pub trait Pipeline: Send {
     fn name(&self) -> &'static str;
     /// Consumes one event; returns a new estimate when there is one.
     fn handle(&mut self, event: &DeviceEvent) -> Option<PoseEstimate>;
+    /// What the pipeline wants the devices to do, oldest first (drained by the daemon after
+    /// every event). Pipelines that only listen never ask for anything.
+    fn take_requests(&mut self) -> Vec<Request> {
+        Vec::new()
+    }
+}
+
+/// A pipeline's request to the devices; the daemon routes it to the device task that can act.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Request {
+    /// Drive the base: forward speed (m/s), turn rate (rad/s).
+    Velocity { v: f64, w: f64 },
+    /// Sweep the directional antenna once; the robot stands still with this odometry heading.
+    Sweep { heading_rad: f64 },
 }
 
 /// Builds the pipeline a configuration asks for.
@@ -28,26 +44,42 @@ pub fn build(config: &EstimatorConfig, state_dir: Option<&std::path::Path>) -> B
         EstimatorConfig::Odometry => Box::new(OdometryPipeline::default()),
         EstimatorConfig::Hfgrid(s) => Box::new(HfGridPipeline::new(s)),
         EstimatorConfig::Snapshot(s) => Box::new(SnapshotPipeline::new(s, state_dir)),
-        EstimatorConfig::Ekfslam(_) => Box::new(Unavailable {
-            name: config.name(),
-            warned: false,
-        }),
+        EstimatorConfig::Ekfslam(s) => match EkfSlamPipeline::new(s) {
+            Ok(p) => Box::new(p),
+            Err(e) => Box::new(Unavailable {
+                name: config.name(),
+                reason: e,
+                warned: false,
+            }),
+        },
     }
 }
 
-/// Whether the daemon can run a pipeline end to end yet.
+/// Sweep settings for the XBee radio's task: the pipeline's step and path-loss model where it
+/// has them, the bearing crate's defaults otherwise.
 #[must_use]
-pub fn is_wired(config: &EstimatorConfig) -> bool {
-    matches!(
-        config,
-        EstimatorConfig::Odometry | EstimatorConfig::Hfgrid(_) | EstimatorConfig::Snapshot(_)
-    )
+pub fn scan_config(config: &EstimatorConfig) -> rfloc_bearing::ScanConfig {
+    let mut scan = rfloc_bearing::ScanConfig::default();
+    if let EstimatorConfig::Ekfslam(e) = config {
+        scan.plan.step_deg = e.sweep_step_deg;
+        scan.estimator.path_loss.p_ref_dbm = e.p_ref_dbm;
+        scan.estimator.path_loss.eta = e.path_loss_exponent;
+    }
+    scan
 }
 
-/// A pipeline whose estimator exists as a library but is not wired into the daemon yet.
+/// Whether the pipeline drives the base itself (then no simulated motion script runs).
+#[must_use]
+pub fn drives_base(config: &EstimatorConfig) -> bool {
+    matches!(config, EstimatorConfig::Ekfslam(e) if !e.waypoints.is_empty())
+}
+
+/// A pipeline that could not be built from a validated configuration (for example an
+/// estimator refusing a start covariance): it publishes nothing and says why once.
 #[derive(Debug)]
 struct Unavailable {
     name: &'static str,
+    reason: String,
     warned: bool,
 }
 
@@ -61,7 +93,8 @@ impl Pipeline for Unavailable {
             self.warned = true;
             tracing::error!(
                 pipeline = self.name,
-                "pipeline not wired into the daemon yet: no poses will be published"
+                reason = %self.reason,
+                "pipeline could not be built: no poses will be published"
             );
         }
         None

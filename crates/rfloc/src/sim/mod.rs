@@ -17,6 +17,15 @@ use tokio::task::JoinHandle;
 use tokio_serial::{SerialPort, SerialStream};
 use tokio_util::sync::CancellationToken;
 
+use std::sync::Mutex;
+
+use rfloc_aria::WheelSlip;
+use rfloc_stepper::{SimulatedStepper, StepperConfig};
+use rfloc_xbee::{
+    Address16, Address64, ApiMode, Beacon, CoordinatorEmulator,
+    EmulatorConfig as XBeeEmulatorConfig, NdLayout, RssiFn,
+};
+
 use crate::config::{DriverConfig, EstimatorConfig, RobotConfig, SimulationConfig};
 use crate::devices::MotionSender;
 
@@ -58,6 +67,8 @@ pub struct SimRuntime {
     /// Slave ends kept open so the masters never see a hang-up between daemon reconnects.
     _slaves: Vec<SerialStream>,
     config: SimulationConfig,
+    /// The rotator the emulated XBee radio's RSSI follows, until the daemon takes it.
+    stepper: Option<SimulatedStepper>,
 }
 
 impl SimRuntime {
@@ -65,6 +76,20 @@ impl SimRuntime {
     #[must_use]
     pub fn truth(&self) -> Option<Pose2> {
         self.base.as_ref().map(EmulatorHandle::truth)
+    }
+
+    /// The emulated robot's simulated clock, if there is a base.
+    #[must_use]
+    pub fn clock(&self) -> Option<rfloc_transport::SharedClock> {
+        self.base
+            .clone()
+            .map(|b| Arc::new(EmulatorClock(b)) as rfloc_transport::SharedClock)
+    }
+
+    /// The simulated antenna stepper (once): the XBee device task turns it, the emulated radio
+    /// reads its angle.
+    pub fn take_stepper(&mut self) -> Option<SimulatedStepper> {
+        self.stepper.take()
     }
 
     /// Stops the emulators.
@@ -99,12 +124,12 @@ pub(crate) fn pty_link(baud: u32) -> anyhow::Result<(SerialStream, SerialStream,
 }
 
 /// Starts an emulator for every device and points the device links at them.
+/// `config_dir` is the folder of the robot file (the scenario path is relative to it).
 pub async fn start(
     cfg: &mut RobotConfig,
     sim: &SimulationConfig,
-    stop: CancellationToken,
+    config_dir: Option<&std::path::Path>,
 ) -> anyhow::Result<SimRuntime> {
-    let _ = stop;
     let emulators = CancellationToken::new();
     let mut runtime = SimRuntime {
         emulators: emulators.clone(),
@@ -112,6 +137,7 @@ pub async fn start(
         tasks: Vec::new(),
         _slaves: Vec::new(),
         config: sim.clone(),
+        stepper: None,
     };
     let start = Pose2::new(sim.start[0], sim.start[1], sim.start[2].to_radians());
     let antenna_offset = match &cfg.estimator {
@@ -129,6 +155,10 @@ pub async fn start(
             time_scale: sim.time_scale,
             initial_pose: start,
             noise_seed: sim.seed,
+            slip: (sim.slip_sigma > 0.0).then_some(WheelSlip {
+                seed: sim.seed ^ 0x5119,
+                relative_std: sim.slip_sigma,
+            }),
             ..RobotEmulatorConfig::default()
         });
         runtime.base = Some(emulator.handle());
@@ -171,7 +201,18 @@ pub async fn start(
         device.link = Some(link);
         runtime._slaves.push(slave);
     }
+    let has_xbee = cfg
+        .devices
+        .iter()
+        .any(|d| matches!(d.driver, DriverConfig::Xbee(_)));
+    if has_xbee {
+        start_xbee(cfg, sim, config_dir, start, &mut runtime)?;
+    }
     for device in &cfg.devices {
+        if matches!(device.driver, DriverConfig::Stepper(_)) {
+            // Pin-less: the simulated stepper stands in for the GPIO lines.
+            continue;
+        }
         if device.link.is_none() {
             anyhow::bail!(
                 "simulation has no emulator for device {:?} (driver {})",
@@ -181,6 +222,102 @@ pub async fn start(
         }
     }
     Ok(runtime)
+}
+
+/// The emulated XBee coordinator in its turning reflector: beacons, path loss, shadowing and
+/// the reflector's gain pattern from the simulation's scenario file, the antenna angle from a
+/// simulated stepper that the daemon's XBee task turns.
+fn start_xbee(
+    cfg: &mut RobotConfig,
+    sim: &SimulationConfig,
+    config_dir: Option<&std::path::Path>,
+    start: Pose2,
+    runtime: &mut SimRuntime,
+) -> anyhow::Result<()> {
+    let scenario_path = sim
+        .scenario
+        .as_ref()
+        .context("an emulated XBee radio needs [simulation] scenario")?;
+    let scenario_path = config_dir.map_or_else(|| scenario_path.clone(), |d| d.join(scenario_path));
+    let scenario = rfloc_sim::Scenario::load(&scenario_path)
+        .with_context(|| format!("loading {}", scenario_path.display()))?;
+    let world = scenario.world.clone();
+    let stepper_settings = cfg.devices.iter().find_map(|d| match &d.driver {
+        DriverConfig::Stepper(s) => Some(s.clone()),
+        _ => None,
+    });
+    let stepper_config = stepper_settings.map_or_else(StepperConfig::default, |s| StepperConfig {
+        full_steps_per_rev: s.steps_per_rev,
+        microsteps: s.microsteps,
+        gear_ratio: s.gear_ratio,
+        ..StepperConfig::default()
+    });
+    let stepper = SimulatedStepper::new(&stepper_config)
+        .map_err(|e| anyhow::anyhow!("simulated stepper: {e}"))?;
+    let antenna = stepper.angle_probe();
+    runtime.stepper = Some(stepper);
+    let sensors = Arc::new(Mutex::new((
+        rfloc_sim::SensorSuite::for_trial(&scenario, 0),
+        None::<Pose2>,
+    )));
+    for device in cfg.devices.iter_mut() {
+        let DriverConfig::Xbee(x) = &device.driver else {
+            continue;
+        };
+        let mode = if x.api_mode == 1 {
+            ApiMode::Unescaped
+        } else {
+            ApiMode::Escaped
+        };
+        let beacons: Vec<Beacon> = world
+            .beacons
+            .iter()
+            .enumerate()
+            .map(|(i, b)| Beacon {
+                address: Address64(b.address),
+                network_address: Address16(0x1000_u16.wrapping_add(u16::try_from(i).unwrap_or(0))),
+                ni: b.ni.clone(),
+            })
+            .collect();
+        let base = runtime.base.clone();
+        let world = world.clone();
+        let sensors = Arc::clone(&sensors);
+        let antenna = antenna.clone();
+        let rssi: RssiFn = Arc::new(move |index| {
+            let pose = base.as_ref().map_or(start, EmulatorHandle::truth);
+            let mut guard = sensors.lock().ok()?;
+            let (suite, drawn_at) = &mut *guard;
+            // Shadowing holds while the robot stands (one sweep); moving on draws anew.
+            if drawn_at.is_none_or(|p: Pose2| p.distance(&pose) > 0.01) {
+                suite.begin_xbee_sweep();
+                *drawn_at = Some(pose);
+            }
+            suite.xbee_rssi(&world, &pose, antenna.get(), index)
+        });
+        let (master, slave, link) = pty_link(115_200)?;
+        let emulator = CoordinatorEmulator::new(
+            beacons,
+            rssi,
+            XBeeEmulatorConfig {
+                mode,
+                nd_layout: NdLayout::ZigbeeOrDigiMesh,
+                append_rssi: true,
+                response_spacing: Duration::from_millis(1),
+                ..XBeeEmulatorConfig::default()
+            },
+        );
+        let stop = runtime.emulators.clone();
+        runtime.tasks.push(tokio::spawn(async move {
+            tokio::select! {
+                () = stop.cancelled() => {}
+                r = emulator.serve(master) => if let Err(e) = r { tracing::warn!(error = %e, "XBee emulator ended") },
+            }
+        }));
+        tracing::info!(device = %device.name, link = %link.describe(), scenario = %scenario_path.display(), beacons = scenario.world.beacons.len(), "emulated XBee coordinator on a pty");
+        device.link = Some(link);
+        runtime._slaves.push(slave);
+    }
+    Ok(())
 }
 
 /// Drives the base through the configured motion script (in simulated time).

@@ -76,4 +76,20 @@ impl Daemon {
         let _ = self.child.kill();
         panic!("daemon did not exit within 15 s of SIGTERM");
     }
+
+    /// Waits up to `limit` for the daemon to exit on its own (a simulation's duration);
+    /// returns the exit status and the whole log.
+    pub async fn wait(mut self, limit: Duration) -> (ExitStatus, String) {
+        let deadline = tokio::time::Instant::now() + limit;
+        while tokio::time::Instant::now() < deadline {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                let log = self.log.take().unwrap().join().unwrap();
+                return (status, log);
+            }
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+        let _ = self.child.kill();
+        let log = self.log.take().unwrap().join().unwrap();
+        panic!("daemon still running after {limit:?}; log:\n{log}");
+    }
 }

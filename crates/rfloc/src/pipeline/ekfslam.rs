@@ -1,0 +1,515 @@
+//! XBee EKF-SLAM pipeline (seed 003): odometry prediction, sweep updates, waypoint driving.
+//!
+//! The pipeline owns the decisions and no I/O. On every odometry event it predicts, then
+//! (with waypoints) runs the waypoint controller on the estimate and asks the daemon to drive
+//! the base. After `sweep_every_s` of driving it stops the base, waits until the odometry
+//! shows it standing still, and asks for one antenna sweep; the sweep's per-beacon peak RSSI
+//! and bearing update the filter (known association by 64-bit address) and driving resumes.
+//! A beacon not yet mapped gets bearing-only views until the filter's delayed initialisation
+//! triangulates it. Without waypoints the pipeline never moves the base: it sweeps whenever
+//! the base has stood still for [`PASSIVE_STILL_S`] and the last sweep is `sweep_every_s` old.
+
+use nalgebra::Matrix3;
+use rfloc_ekfslam::{
+    BeaconObservation, DelayedInit, EkfSlam, EkfSlamConfig, ObservationOutcome, OdometryNoise,
+    PathLoss, WaypointController, WaypointControllerConfig,
+};
+use rfloc_pose::{Pose2, PoseEstimate};
+
+use crate::config::EkfSlamSettings;
+use crate::events::{DeviceEvent, SweptBeacon};
+use crate::pipeline::{Pipeline, Request};
+
+/// Standing still this long (s) lets a pipeline without waypoints sweep.
+pub const PASSIVE_STILL_S: f64 = 1.0;
+/// Speeds below these (m/s, rad/s) count as standing still.
+const STILL_V: f64 = 1e-3;
+const STILL_W: f64 = 1e-3;
+
+/// How sweep readings become filter measurements.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Measurement {
+    /// Range from the path-loss model, σ in metres.
+    Range { sigma_m: f64 },
+    /// Peak RSSI in dB (unbiased), σ in dB.
+    Rssi { sigma_db: f64 },
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Phase {
+    /// Following waypoints (or, without waypoints, waiting for a still base).
+    Driving,
+    /// Stop commanded; waiting for the odometry to show the base still.
+    Stopping,
+    /// Sweep requested at this time; waiting for its result.
+    Sweeping { since: f64 },
+    /// Last waypoint reached.
+    Done,
+}
+
+/// Counters of one pipeline run (logged on every sweep).
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct EkfSlamCounters {
+    pub sweeps: u64,
+    pub failed_sweeps: u64,
+    pub late_sweeps: u64,
+    pub gate_rejections: u64,
+    pub prediction_errors: u64,
+}
+
+/// The EKF-SLAM pipeline.
+pub struct EkfSlamPipeline {
+    ekf: EkfSlam,
+    controller: Option<WaypointController>,
+    measurement: Measurement,
+    bearing_floor_rad2: f64,
+    sweep_every_s: f64,
+    sweep_timeout_s: f64,
+    phase: Phase,
+    last: Option<(f64, Pose2)>,
+    driven_since_sweep: f64,
+    still_since: Option<f64>,
+    last_sweep_end: Option<f64>,
+    requests: Vec<Request>,
+    counters: EkfSlamCounters,
+}
+
+impl EkfSlamPipeline {
+    /// Builds the filter and controller from validated settings.
+    pub fn new(s: &EkfSlamSettings) -> Result<Self, String> {
+        let measurement = match s.measurement.as_str() {
+            "range" => Measurement::Range {
+                sigma_m: s.range_sigma_m,
+            },
+            "rssi" => Measurement::Rssi {
+                sigma_db: s.rssi_sigma_db,
+            },
+            other => return Err(format!("measurement {other:?} is not range or rssi")),
+        };
+        let config = EkfSlamConfig {
+            path_loss: PathLoss {
+                p_ref_dbm: s.p_ref_dbm,
+                eta: s.path_loss_exponent,
+            },
+            odometry_noise: OdometryNoise {
+                trans_per_m: s.odometry_trans_per_m,
+                rot_per_rad: s.odometry_rot_per_rad,
+                ..OdometryNoise::default()
+            },
+            delayed_init: DelayedInit {
+                max_std_m: s.beacon_init_max_std_m,
+                ..DelayedInit::default()
+            },
+            ..EkfSlamConfig::default()
+        };
+        let start = Pose2::new(s.start[0], s.start[1], s.start[2].to_radians());
+        let ekf = EkfSlam::new(config, start, Matrix3::zeros()).map_err(|e| e.to_string())?;
+        let controller = (!s.waypoints.is_empty()).then(|| {
+            WaypointController::new(
+                WaypointControllerConfig {
+                    rho_min: s.waypoint_switch_m,
+                    max_speed: s.max_speed_mps,
+                    ..WaypointControllerConfig::default()
+                },
+                s.waypoints.iter().map(|w| (w[0], w[1])).collect(),
+            )
+        });
+        let floor = s.bearing_floor_deg.to_radians();
+        Ok(Self {
+            ekf,
+            controller,
+            measurement,
+            bearing_floor_rad2: floor * floor,
+            sweep_every_s: s.sweep_every_s,
+            sweep_timeout_s: s.sweep_timeout_s,
+            phase: Phase::Driving,
+            last: None,
+            driven_since_sweep: 0.0,
+            still_since: None,
+            last_sweep_end: None,
+            requests: Vec::new(),
+            counters: EkfSlamCounters::default(),
+        })
+    }
+
+    /// The filter (map and pose).
+    #[cfg(test)]
+    #[must_use]
+    pub fn filter(&self) -> &EkfSlam {
+        &self.ekf
+    }
+
+    /// Counters so far.
+    #[cfg(test)]
+    #[must_use]
+    pub fn counters(&self) -> EkfSlamCounters {
+        self.counters
+    }
+
+    /// True once the last waypoint has been reached.
+    #[cfg(test)]
+    #[must_use]
+    pub fn is_done(&self) -> bool {
+        self.phase == Phase::Done
+    }
+
+    fn stop_base(&mut self) {
+        self.requests.push(Request::Velocity { v: 0.0, w: 0.0 });
+    }
+
+    fn on_odometry(&mut self, t: f64, pose: Pose2, v: f64, w: f64) -> Option<PoseEstimate> {
+        let Some((t0, p0)) = self.last.replace((t, pose)) else {
+            return Some(self.ekf.pose_estimate(t));
+        };
+        let dt = (t - t0).max(0.0);
+        let delta = pose.relative_to(&p0);
+        if let Err(e) = self.ekf.predict_odometry(delta) {
+            self.counters.prediction_errors += 1;
+            tracing::warn!(error = %e, count = self.counters.prediction_errors, "odometry increment not used");
+        }
+        let still = v.abs() < STILL_V
+            && w.abs() < STILL_W
+            && delta.x.hypot(delta.y) < 5e-4
+            && delta.theta.abs() < 1e-3;
+        if still {
+            self.still_since.get_or_insert(t);
+        } else {
+            self.still_since = None;
+        }
+        let pose_now = self.ekf.pose();
+        match (self.phase, self.controller.as_mut()) {
+            (Phase::Driving, Some(controller)) => {
+                let cmd = controller.command(&pose_now, dt);
+                self.driven_since_sweep += dt;
+                if cmd.done {
+                    tracing::info!(x = pose_now.x, y = pose_now.y, "last waypoint reached");
+                    self.phase = Phase::Done;
+                    self.stop_base();
+                } else if self.driven_since_sweep >= self.sweep_every_s {
+                    self.phase = Phase::Stopping;
+                    self.stop_base();
+                } else {
+                    self.requests.push(Request::Velocity {
+                        v: cmd.v,
+                        w: cmd.omega,
+                    });
+                }
+            }
+            (Phase::Driving, None) => {
+                let settled = self.still_since.is_some_and(|s| t - s >= PASSIVE_STILL_S);
+                let due = self
+                    .last_sweep_end
+                    .is_none_or(|e| t - e >= self.sweep_every_s);
+                if settled && due {
+                    self.request_sweep(t, pose.theta);
+                }
+            }
+            (Phase::Stopping, _) => {
+                if still {
+                    self.request_sweep(t, pose.theta);
+                } else {
+                    self.stop_base();
+                }
+            }
+            (Phase::Sweeping { since }, _) => {
+                if t - since > self.sweep_timeout_s {
+                    self.counters.failed_sweeps += 1;
+                    tracing::warn!(
+                        waited_s = t - since,
+                        failed = self.counters.failed_sweeps,
+                        "no sweep result; resuming without it"
+                    );
+                    self.resume(t);
+                }
+            }
+            (Phase::Done, _) => {}
+        }
+        Some(self.ekf.pose_estimate(t))
+    }
+
+    fn request_sweep(&mut self, t: f64, heading_rad: f64) {
+        self.phase = Phase::Sweeping { since: t };
+        self.requests.push(Request::Sweep { heading_rad });
+    }
+
+    fn resume(&mut self, t: f64) {
+        self.phase = Phase::Driving;
+        self.driven_since_sweep = 0.0;
+        self.last_sweep_end = Some(t);
+    }
+
+    fn observation(&self, b: &SweptBeacon) -> BeaconObservation {
+        let sigma_b = (b.bearing_variance_rad2.max(0.0) + self.bearing_floor_rad2).sqrt();
+        if self.ekf.beacon(b.id).is_none() {
+            return BeaconObservation::bearing_only(b.id, b.bearing_rad, sigma_b);
+        }
+        match self.measurement {
+            Measurement::Range { sigma_m } => BeaconObservation::range_bearing(
+                b.id,
+                self.ekf.config().path_loss.distance_for(b.peak_rssi_dbm),
+                b.bearing_rad,
+                sigma_m,
+                sigma_b,
+            ),
+            Measurement::Rssi { sigma_db } => BeaconObservation::rssi_bearing(
+                b.id,
+                b.peak_rssi_dbm,
+                b.bearing_rad,
+                sigma_db,
+                sigma_b,
+            ),
+        }
+    }
+
+    fn on_sweep(
+        &mut self,
+        t: f64,
+        result: &Result<Vec<SweptBeacon>, String>,
+    ) -> Option<PoseEstimate> {
+        if !matches!(self.phase, Phase::Sweeping { .. }) {
+            // Given up on, or not asked for: the robot may have moved since, so the bearings
+            // no longer refer to its pose.
+            self.counters.late_sweeps += 1;
+            tracing::warn!(
+                late = self.counters.late_sweeps,
+                "sweep result outside a sweep; not used"
+            );
+            return None;
+        }
+        let now = self.last.map_or(t, |(tl, _)| tl.max(t));
+        match result {
+            Ok(beacons) => {
+                let obs: Vec<BeaconObservation> =
+                    beacons.iter().map(|b| self.observation(b)).collect();
+                let outcomes = self.ekf.update(&obs);
+                let rejected = outcomes
+                    .iter()
+                    .filter(|o| matches!(o, ObservationOutcome::Rejected { .. }))
+                    .count() as u64;
+                self.counters.sweeps += 1;
+                self.counters.gate_rejections += rejected;
+                let p = self.ekf.pose();
+                tracing::info!(
+                    sweep = self.counters.sweeps,
+                    heard = beacons.len(),
+                    rejected,
+                    mapped = self.ekf.beacon_count(),
+                    x = p.x,
+                    y = p.y,
+                    theta = p.theta,
+                    "sweep applied"
+                );
+            }
+            Err(reason) => {
+                self.counters.failed_sweeps += 1;
+                tracing::warn!(reason = %reason, failed = self.counters.failed_sweeps, "sweep failed; resuming without it");
+            }
+        }
+        self.resume(now);
+        Some(self.ekf.pose_estimate(now))
+    }
+}
+
+impl Pipeline for EkfSlamPipeline {
+    fn name(&self) -> &'static str {
+        "ekfslam"
+    }
+
+    fn handle(&mut self, event: &DeviceEvent) -> Option<PoseEstimate> {
+        match event {
+            DeviceEvent::Odometry { t, pose, v, w, .. } => self.on_odometry(*t, *pose, *v, *w),
+            DeviceEvent::Sweep { t, result, .. } => self.on_sweep(*t, result),
+            DeviceEvent::HfTag { .. }
+            | DeviceEvent::UhfSnapshot { .. }
+            | DeviceEvent::Mark { .. }
+            | DeviceEvent::Status { .. } => None,
+        }
+    }
+
+    fn take_requests(&mut self) -> Vec<Request> {
+        std::mem::take(&mut self.requests)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rfloc_pose::EstimateMode;
+
+    fn settings(waypoints: Vec<[f64; 2]>) -> EkfSlamSettings {
+        let text = "pipeline = \"ekfslam\"\n";
+        let mut s: EkfSlamSettings =
+            match toml::from_str::<crate::config::EstimatorConfig>(text).unwrap() {
+                crate::config::EstimatorConfig::Ekfslam(s) => s,
+                other => panic!("{other:?}"),
+            };
+        s.waypoints = waypoints;
+        s.sweep_every_s = 1.0;
+        s
+    }
+
+    fn odo(t: f64, x: f64, y: f64, theta: f64, v: f64) -> DeviceEvent {
+        DeviceEvent::Odometry {
+            device: "base".into(),
+            t,
+            pose: Pose2::new(x, y, theta),
+            v,
+            w: 0.0,
+        }
+    }
+
+    fn sweep(t: f64, beacons: Vec<SweptBeacon>) -> DeviceEvent {
+        DeviceEvent::Sweep {
+            device: "xbee".into(),
+            t,
+            result: Ok(beacons),
+        }
+    }
+
+    /// What a perfect sweep from `pose` reports for beacons at `points`.
+    fn perfect(pose: Pose2, points: &[(u64, f64, f64)], p: &PathLoss) -> Vec<SweptBeacon> {
+        points
+            .iter()
+            .map(|&(id, x, y)| {
+                let (dx, dy) = (x - pose.x, y - pose.y);
+                SweptBeacon {
+                    id,
+                    peak_rssi_dbm: p.rssi_at(dx.hypot(dy)),
+                    bearing_rad: rfloc_pose::angle_diff(dy.atan2(dx), pose.theta),
+                    bearing_variance_rad2: 1e-4,
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn drives_stops_sweeps_and_resumes() {
+        let mut p = EkfSlamPipeline::new(&settings(vec![[5.0, 0.0]])).unwrap();
+        assert!(p.handle(&odo(0.0, 0.0, 0.0, 0.0, 0.0)).is_some());
+        // Driving: a forward command towards the waypoint.
+        p.handle(&odo(0.1, 0.0, 0.0, 0.0, 0.0));
+        let r = p.take_requests();
+        assert!(
+            matches!(r.as_slice(), [Request::Velocity { v, .. }] if *v > 0.0),
+            "{r:?}"
+        );
+        // After sweep_every_s of driving: stop.
+        let mut x = 0.0;
+        let mut t = 0.1;
+        while p.phase == Phase::Driving {
+            t += 0.1;
+            x += 0.03;
+            p.handle(&odo(t, x, 0.0, 0.0, 0.3));
+        }
+        assert_eq!(p.phase, Phase::Stopping);
+        assert!((1.0..1.3).contains(&t), "{t}");
+        assert_eq!(
+            p.take_requests().last(),
+            Some(&Request::Velocity { v: 0.0, w: 0.0 })
+        );
+        // Still moving: keep stopping; standing: sweep.
+        t += 0.1;
+        x += 0.01;
+        p.handle(&odo(t, x, 0.0, 0.0, 0.1));
+        assert_eq!(p.phase, Phase::Stopping);
+        p.take_requests();
+        t += 0.1;
+        p.handle(&odo(t, x, 0.0, 0.0, 0.0));
+        assert_eq!(p.take_requests(), vec![Request::Sweep { heading_rad: 0.0 }]);
+        assert!(matches!(p.phase, Phase::Sweeping { .. }));
+        // The result comes back: driving resumes and the filter has views.
+        let est = p.handle(&sweep(t + 2.0, Vec::new())).unwrap();
+        assert_eq!(est.mode, EstimateMode::Degraded, "no beacon, no fix");
+        assert_eq!(p.phase, Phase::Driving);
+        assert_eq!(p.counters().sweeps, 1);
+    }
+
+    #[test]
+    fn sweeps_map_beacons_and_correct_the_pose() {
+        let beacons = [(1u64, 2.0, 3.0), (2, 4.0, -2.0), (3, -1.0, -3.0)];
+        let mut p = EkfSlamPipeline::new(&settings(Vec::new())).unwrap();
+        let path_loss = p.filter().config().path_loss;
+        // A passive robot moved by someone else: still at several spots, each long enough.
+        let spots = [
+            (0.0, 0.0),
+            (1.0, 0.0),
+            (2.0, 0.5),
+            (2.0, 1.5),
+            (1.0, 2.0),
+            (0.0, 1.0),
+            (-1.0, 0.0),
+            (0.5, -1.5),
+        ];
+        let mut t = 0.0;
+        for (k, &(x, y)) in spots.iter().enumerate() {
+            for _ in 0..15 {
+                t += 0.1;
+                p.handle(&odo(t, x, y, 0.0, 0.0));
+            }
+            let asked = p.take_requests();
+            assert_eq!(asked, vec![Request::Sweep { heading_rad: 0.0 }], "spot {k}");
+            p.handle(&sweep(
+                t,
+                perfect(Pose2::new(x, y, 0.0), &beacons, &path_loss),
+            ));
+            assert!(p.take_requests().is_empty());
+        }
+        assert_eq!(p.filter().beacon_count(), 3);
+        for (id, x, y) in beacons {
+            let b = p.filter().beacon(id).unwrap();
+            let e = (b.position.x - x).hypot(b.position.y - y);
+            assert!(e < 0.05, "beacon {id} off by {e} m");
+        }
+        let est = p.handle(&odo(t + 0.1, 0.0, 1.0, 0.0, 0.0)).unwrap();
+        assert_eq!(est.mode, EstimateMode::Fix);
+        assert!(
+            est.pose.x.abs() < 0.05 && (est.pose.y - 1.0).abs() < 0.05,
+            "{:?}",
+            est.pose
+        );
+    }
+
+    #[test]
+    fn a_lost_sweep_times_out_and_a_late_one_is_ignored() {
+        let mut s = settings(vec![[5.0, 0.0]]);
+        s.sweep_timeout_s = 2.0;
+        let mut p = EkfSlamPipeline::new(&s).unwrap();
+        p.handle(&odo(0.0, 0.0, 0.0, 0.0, 0.0));
+        p.phase = Phase::Stopping;
+        p.handle(&odo(0.1, 0.0, 0.0, 0.0, 0.0));
+        assert!(matches!(p.phase, Phase::Sweeping { .. }));
+        p.handle(&odo(2.0, 0.0, 0.0, 0.0, 0.0));
+        assert!(matches!(p.phase, Phase::Sweeping { .. }));
+        p.handle(&odo(2.2, 0.0, 0.0, 0.0, 0.0));
+        assert_eq!(p.phase, Phase::Driving);
+        assert_eq!(p.counters().failed_sweeps, 1);
+        assert!(p.handle(&sweep(2.3, Vec::new())).is_none());
+        assert_eq!(p.counters().late_sweeps, 1);
+        // A failed sweep resumes driving too.
+        p.phase = Phase::Sweeping { since: 2.3 };
+        let failed = DeviceEvent::Sweep {
+            device: "xbee".into(),
+            t: 2.4,
+            result: Err("probe failed".into()),
+        };
+        assert!(p.handle(&failed).is_some());
+        assert_eq!(p.phase, Phase::Driving);
+        assert_eq!(p.counters().failed_sweeps, 2);
+    }
+
+    #[test]
+    fn reaching_the_last_waypoint_stops_the_base() {
+        let mut s = settings(vec![[0.1, 0.0]]);
+        s.sweep_every_s = 100.0;
+        let mut p = EkfSlamPipeline::new(&s).unwrap();
+        p.handle(&odo(0.0, 0.0, 0.0, 0.0, 0.0));
+        p.handle(&odo(0.1, 0.0, 0.0, 0.0, 0.0));
+        assert!(p.is_done(), "inside ρ_min of the only waypoint");
+        assert_eq!(
+            p.take_requests(),
+            vec![Request::Velocity { v: 0.0, w: 0.0 }]
+        );
+        p.handle(&odo(0.2, 0.0, 0.0, 0.0, 0.0));
+        assert!(p.take_requests().is_empty());
+    }
+}

@@ -1,0 +1,139 @@
+//! The daemon binary on the XBee beacon robot (seed 003) in simulation: `rfloc run` starts an
+//! emulated Pioneer and an emulated XBee coordinator on real pseudo-terminals, its XBee task
+//! sweeps a simulated antenna stepper with one `ND` round per stop, and the EKF-SLAM pipeline
+//! drives the base through the seed's four waypoints, stopping to sweep. Once the published pose
+//! has stood still near the last waypoint for 3 s (pose stamps are simulated seconds) the daemon
+//! is stopped with SIGTERM; the last pose must be near the robot's true pose, which the daemon
+//! logs on exit, and the log must show the four beacons mapped and the last waypoint reached.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+mod common;
+
+use std::time::Duration;
+
+/// `config/sim-xbee.toml` with a free pose port, an absolute scenario path, a faster clock and
+/// a capture folder.
+fn config(dir: &std::path::Path, port: u16) -> std::path::PathBuf {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let text = std::fs::read_to_string(root.join("config/sim-xbee.toml")).unwrap();
+    let scenario = root.join("scenarios/seed003-case1.toml");
+    let text = text
+        .replace("127.0.0.1:2949", &format!("127.0.0.1:{port}"))
+        .replace("stdout = true", "stdout = false")
+        .replace(
+            "scenario = \"../scenarios/seed003-case1.toml\"",
+            &format!("scenario = {:?}", scenario.display().to_string()),
+        )
+        .replace("time_scale = 5.0", "time_scale = 10.0")
+        .replace("duration_s = 200.0", "duration_s = 1000.0")
+        .replace(
+            "[pose]",
+            &format!(
+                "[state]\ncapture_dir = {:?}\n\n[pose]",
+                dir.join("cap").display().to_string()
+            ),
+        );
+    assert!(text.contains("time_scale = 10.0") && text.contains(&format!(":{port}")));
+    let path = dir.join("robot.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// `key=value` of the last log line containing `needle`.
+fn logged(log: &str, needle: &str, key: &str) -> f64 {
+    let line = log
+        .lines()
+        .rev()
+        .find(|l| l.contains(needle))
+        .unwrap_or_else(|| panic!("no log line with {needle:?}"));
+    let start = line
+        .find(&format!(" {key}="))
+        .unwrap_or_else(|| panic!("no {key} in {line}"))
+        + key.len()
+        + 2;
+    line[start..]
+        .split_whitespace()
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn ekfslam_daemon_maps_beacons_and_drives_the_waypoints() {
+    let dir = tempfile::tempdir().unwrap();
+    let port = common::free_port();
+    let path = config(dir.path(), port);
+    let daemon = common::Daemon::start(&path, "info");
+    let mut lines = daemon.pose_lines(port).await;
+    let mut fixes = 0usize;
+    let mut poses = 0usize;
+    // (stamp, x, y) where the pose last moved.
+    let mut parked: Option<(f64, f64, f64)> = None;
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(120);
+    let last = loop {
+        let line = tokio::time::timeout_at(deadline, lines.next_line())
+            .await
+            .expect("the robot never parked at the last waypoint")
+            .unwrap()
+            .expect("pose stream ended");
+        let v: serde_json::Value = serde_json::from_str(&line).unwrap();
+        if v["class"] != "POSE" {
+            continue;
+        }
+        assert_eq!(v["source"], "ekfslam");
+        poses += 1;
+        if v["mode"] == "fix" {
+            fixes += 1;
+        }
+        let (t, x, y) = (
+            v["stamp"].as_f64().unwrap(),
+            v["x"].as_f64().unwrap(),
+            v["y"].as_f64().unwrap(),
+        );
+        match parked {
+            Some((t0, x0, y0)) if (x - x0).hypot(y - y0) < 0.005 => {
+                // Inside the switching distance (0.3 m) the controller is done at once, so a
+                // pose standing there is parked, not sweeping on the way.
+                if t - t0 >= 3.0 && (x - 7.0).hypot(y - 2.0) < 0.29 {
+                    break v;
+                }
+            }
+            _ => parked = Some((t, x, y)),
+        }
+    };
+    let (status, log) = daemon.terminate().await;
+    assert!(status.success(), "{status:?}\n{log}");
+    assert!(poses > 500, "{poses} poses");
+    assert!(fixes > poses / 2, "{fixes} of {poses} poses were fixes");
+    assert!(log.contains("last waypoint reached"), "{log}");
+    assert_eq!(
+        logged(&log, "sweep applied", "mapped"),
+        4.0,
+        "all four beacons mapped"
+    );
+    let (tx, ty) = (
+        logged(&log, "final true pose", "x"),
+        logged(&log, "final true pose", "y"),
+    );
+    let (ex, ey) = (last["x"].as_f64().unwrap(), last["y"].as_f64().unwrap());
+    let error = (ex - tx).hypot(ey - ty);
+    // The last waypoint is (7, 2) and the switching distance 0.3 m.
+    assert!(
+        (tx - 7.0).hypot(ty - 2.0) < 0.6,
+        "robot ended at ({tx}, {ty})"
+    );
+    assert!(
+        error < 0.3,
+        "final estimate ({ex}, {ey}) is {error:.3} m from truth ({tx}, {ty})"
+    );
+    // Every link was recorded; the radio's capture holds the ND requests of the sweeps.
+    let xbee = std::fs::read_to_string(dir.path().join("cap/xbee.cap")).unwrap();
+    let sweeps = logged(&log, "sweep applied", "sweep");
+    let tx_lines = xbee.lines().filter(|l| l.contains(" tx ")).count();
+    assert!(
+        tx_lines as f64 >= sweeps * 40.0,
+        "{tx_lines} requests for {sweeps} sweeps of 40 stops"
+    );
+    assert!(dir.path().join("cap/base.cap").exists());
+}
