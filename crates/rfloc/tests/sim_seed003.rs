@@ -1,7 +1,8 @@
 //! `rfloc sim` on seed 003 case I, shortened to a 40 s mission: the emulated Pioneer and XBee
 //! coordinator run on real ptys behind rfloc's drivers; the run must write its report, the
 //! trial's truth/estimate files and both device captures, localise within a loose bound, and
-//! give the same numbers when repeated with the same seed.
+//! give the same numbers when repeated with the same seed (identical files:
+//! `sim_determinism.rs`).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::path::{Path, PathBuf};
@@ -26,7 +27,7 @@ fn sim(scenario: &Path, out: &Path) -> String {
     let o = Command::new(env!("CARGO_BIN_EXE_rfloc"))
         .arg("sim")
         .arg(scenario)
-        .args(["--trials", "1", "--time-scale", "10", "-o"])
+        .args(["--trials", "1", "-o"])
         .arg(out)
         .output()
         .unwrap();
@@ -85,25 +86,15 @@ fn seed003_case1_short_run_end_to_end() {
     assert!(mapped >= 1.0, "no beacon mapped\n{table}");
     assert!(metric(&table, "sweeps") >= 5.0, "{table}");
 
-    // Same seed, same run, up to timing. The emulators run on wall time (time scale 10: one
-    // SIP per 10 ms); when the trial loop answers every SIP well before the next tick the two
-    // runs were seen to be identical bit for bit, but a command that reaches the emulated
-    // Pioneer just at a tick boundary (a loaded machine) lands in either tick, and the runs
-    // then drift apart slightly. So the numbers are compared, loosely.
+    // Same seed, same numbers: the emulators run in lock-step with the trial.
     let again = sim(&scenario, &tmp.path().join("b"));
-    eprintln!(
-        "late SIPs: {} and {}",
-        metric(&table, "late_sips"),
-        metric(&again, "late_sips")
-    );
-    for m in ["rmse_m", "odometry_rmse_m"] {
-        let (a, b) = (metric(&table, m), metric(&again, m));
-        assert!((a - b).abs() < 0.05, "{m}: {a} vs {b}\n{table}\n{again}");
+    for m in ["rmse_m", "odometry_rmse_m", "beacons_mapped", "sweeps"] {
+        assert_eq!(
+            metric(&table, m),
+            metric(&again, m),
+            "{m}\n{table}\n{again}"
+        );
     }
-    assert_eq!(
-        metric(&table, "beacons_mapped"),
-        metric(&again, "beacons_mapped")
-    );
 }
 
 /// Parses a capture; checks its device, that times never go back and stay within the

@@ -53,11 +53,9 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
 
 use anyhow::Context;
 use nalgebra::Matrix3;
-use rfloc_aria::Odometry;
 use rfloc_bearing::{EstimatorConfig, PathLossModel, ScanConfig, ScanRunner, SweepPlanConfig};
 use rfloc_ekfslam::{
     BeaconObservation, DelayedInit, EkfSlam, EkfSlamConfig, ObservationOutcome, PathLoss,
@@ -68,24 +66,25 @@ use rfloc_sim::geometry::Point;
 use rfloc_sim::recorder::TrialRecorder;
 use rfloc_sim::{Scenario, SensorSuite};
 use rfloc_stepper::{SimulatedStepper, StepperConfig};
-use tokio::sync::watch;
 
 use super::SimOptions;
 
+pub(super) mod lockstep;
 mod probe;
 mod rig;
 mod slip;
-mod truth_log;
 
+use lockstep::LockstepBase;
 use probe::NdRssiProbe;
 use rig::{Rig, RigSettings};
 use slip::{wheel_travel, OdometrySlip};
-use truth_log::{TruthLog, TruthTick};
 
 /// Driving time between two sweeps, simulated seconds.
 pub const SWEEP_EVERY_S: f64 = 3.0;
 /// Mission time one sweep counts for (40 stops × 50 ms), seconds.
 pub const SWEEP_SECONDS: f64 = 2.0;
+/// Ticks of the emulated Pioneer a sweep takes ([`SWEEP_SECONDS`] of SIP periods).
+const SWEEP_TICKS: u64 = 20;
 /// Wheel slip σ (relative, per 10 ms substep) when the scenario sets no `drive.slip_sigma`.
 pub const DEFAULT_SLIP_SIGMA: f64 = 0.05;
 /// Map a new beacon from triangulated bearings (the filter's delayed initialisation) instead
@@ -108,8 +107,6 @@ const EMULATOR_TRACK_M: f64 = 2.0 / 5.6;
 const ODOMETRY_VARIANCE_MARGIN: f64 = 1.0;
 /// Added to every bearing variance from the sweep estimator, rad² ((3°)²: pattern mismatch).
 const BEARING_FLOOR_RAD2: f64 = 0.002_741_556_778_080_377_4;
-/// How long the loop waits for the next SIP before it gives up, wall seconds.
-const SIP_TIMEOUT: Duration = Duration::from_secs(5);
 
 /// Runs one trial.
 pub async fn run_trial(
@@ -118,11 +115,8 @@ pub async fn run_trial(
     dir: &Path,
     opts: &SimOptions,
 ) -> anyhow::Result<TrialRecorder> {
-    let time_scale = if opts.time_scale.is_finite() && opts.time_scale > 0.0 {
-        opts.time_scale
-    } else {
-        20.0
-    };
+    // Lock-step emulators: `opts.time_scale` does not apply (see the module documentation).
+    let _ = opts;
     let drive = &scenario.spec.robot.drive;
     let slip = if drive.slip_sigma > 0.0 {
         drive.slip_sigma
@@ -131,7 +125,6 @@ pub async fn run_trial(
     };
     // The emulator's own slip is off: see `slip` for why it is applied to the odometry.
     let settings = RigSettings {
-        time_scale,
         slip_relative_std: 0.0,
         slip_seed: 0,
     };
@@ -148,15 +141,20 @@ pub async fn run_trial(
         antenna,
     )
     .await?;
-    let truth = rig.truth.clone();
     let xbee = rig
         .take_xbee()
         .context("the XBee driver was already taken")?;
-    let mut mission = Mission::new(scenario, trial, slip, stepper, xbee, sensors)?;
-    let outcome = mission.run(&rig, &truth).await;
+    let base = Arc::clone(&rig.base);
+    let outcome = match Mission::new(scenario, trial, slip, stepper, xbee, sensors, &base) {
+        Ok(mut mission) => {
+            let run = mission.run(&base).await;
+            run.map(|()| mission.finish())
+        }
+        Err(e) => Err(e),
+    };
+    drop(base);
     rig.shutdown().await;
-    outcome?;
-    Ok(mission.finish())
+    outcome
 }
 
 /// Sums for a root mean square.
@@ -216,9 +214,6 @@ struct Mission {
     odometry_error: Rms,
     beacon_error: BTreeMap<u64, Rms>,
     sweeps: usize,
-    /// SIPs that arrived more than one period after the previous one (the loop fell behind;
-    /// a command then met a later tick than in an unhurried run).
-    late_sips: usize,
     /// Reconnections of the Pioneer driver (each rebases its odometry).
     base_reconnects: u64,
     observations: usize,
@@ -245,6 +240,7 @@ impl Mission {
         stepper: SimulatedStepper,
         xbee: rig::XBeeLink,
         sensors: Arc<Mutex<SensorSuite>>,
+        base: &Arc<LockstepBase>,
     ) -> anyhow::Result<Mission> {
         let model = scenario.xbee_model();
         // Shadowing (held per sweep) and fast fading (per reading) of the RSSI model: what an
@@ -269,7 +265,8 @@ impl Mission {
                 ..EstimatorConfig::default()
             },
         };
-        let runner = ScanRunner::new(stepper, NdRssiProbe::new(xbee), scan)
+        let probe = NdRssiProbe::new(xbee, Arc::clone(base), steps as u64, SWEEP_TICKS);
+        let runner = ScanRunner::new(stepper, probe, scan)
             .map_err(|e| anyhow::anyhow!("sweep plan: {e}"))?;
         let start = scenario.start_pose(trial);
         let ekf = EkfSlam::new(
@@ -327,7 +324,6 @@ impl Mission {
             odometry_error: Rms::default(),
             beacon_error: BTreeMap::new(),
             sweeps: 0,
-            late_sips: 0,
             base_reconnects: 0,
             observations: 0,
             rejected: 0,
@@ -359,68 +355,23 @@ impl Mission {
         }
     }
 
-    async fn next_sample(
-        odometry: &mut watch::Receiver<Odometry>,
-        truth: &TruthLog,
-    ) -> anyhow::Result<(Odometry, TruthTick)> {
-        tokio::time::timeout(SIP_TIMEOUT, odometry.changed())
-            .await
-            .context("no SIP from the emulated Pioneer")?
-            .context("the Pioneer driver stopped")?;
-        let o = *odometry.borrow_and_update();
-        let tick = truth
-            .at_odometry(&o.pose)
-            .context("no emulator state yet")?;
-        Ok((o, tick))
-    }
-
-    async fn run(&mut self, rig: &Rig, truth: &TruthLog) -> anyhow::Result<()> {
-        let mut odometry = rig.base.odometry();
-        // Let the link settle (handshake replies, first SIPs) before the mission starts, so
-        // that the first command meets the same emulator tick in every run.
-        let (mut first, mut tick) = Self::next_sample(&mut odometry, truth).await?;
-        let settle_until = first.seq + SETTLE_SIPS;
-        while first.seq < settle_until {
-            (first, tick) = Self::next_sample(&mut odometry, truth).await?;
+    async fn run(&mut self, base: &LockstepBase) -> anyhow::Result<()> {
+        // Let the link settle (first SIPs) before the mission starts.
+        let (mut first, mut state) = base.tick().await?;
+        for _ in 1..SETTLE_SIPS {
+            (first, state) = base.tick().await?;
         }
         let mut prev_odo = first.pose;
-        let mut last_seq = first.seq;
-        self.record(tick.truth);
+        self.record(state.truth);
         let mut since_sweep = 0.0;
         let mut stopping = false;
-        let mut resync = false;
         loop {
-            let (o, tick) = Self::next_sample(&mut odometry, truth).await?;
-            // The driver counts SIPs; the emulator sends one per 100 ms tick.
-            if o.seq <= last_seq {
-                continue;
-            }
-            let sips = o.seq - last_seq;
-            last_seq = o.seq;
+            // One SIP period under the command sent at the end of the previous one.
+            let (o, state) = base.tick().await?;
             let ground = o.pose.relative_to(&prev_odo);
             prev_odo = o.pose;
-            // SIP periods since the previous sample (more than one when the loop fell behind).
-            // The first SIP after a sweep comes however long the sweep's pty round trips took;
-            // the robot stood still and the sweep's nominal time is already on the mission
-            // clock, so it counts as one period. Driving, a late loop is counted as it happened
-            // (the command it sends then meets a later tick: `late_sips` counts these).
-            // A sample without wheel motion also counts as one period: nothing physical
-            // happened, and a loop that fell behind at a standstill must not shift the clock.
-            let standing = ground.x == 0.0 && ground.y == 0.0 && ground.theta == 0.0;
-            let periods = if resync || standing { 1 } else { sips };
-            if periods > 1 {
-                // Only counted while driving (see `standing`).
-                self.late_sips += 1;
-                tracing::debug!(
-                    periods,
-                    t = self.t,
-                    stopping,
-                    "trial loop fell behind the emulated robot"
-                );
-            }
-            resync = false;
-            let step = periods as f64 * SIP_PERIOD_S;
-            self.ticks += periods;
+            let step = SIP_PERIOD_S;
+            self.ticks += 1;
             self.t = self.ticks as f64 * SIP_PERIOD_S + self.sweeps as f64 * SWEEP_SECONDS;
             let delta = self.odometry_slip.apply(&ground, step);
             self.ekf
@@ -430,7 +381,7 @@ impl Mission {
                 )
                 .map_err(|e| anyhow::anyhow!("EKF prediction: {e}"))?;
             self.dead_reckoning = self.dead_reckoning.compose(&delta);
-            self.record(tick.truth);
+            self.record(state.truth);
             if self.t >= self.duration || self.controller.is_done() {
                 break;
             }
@@ -440,38 +391,30 @@ impl Mission {
                     && ground.x.hypot(ground.y) < 5e-4
                     && ground.theta.abs() < 1e-3;
                 if still {
-                    self.sweep(o.pose.theta, tick.truth).await?;
-                    // The newest SIP arrived during the sweep; resume on a fresh one, so the
-                    // first command meets the next tick as every other command does.
-                    odometry.borrow_and_update();
+                    // The sweep takes SWEEP_TICKS ticks of the standing robot (the probe
+                    // spreads them over its rounds); the mission clock counts them as the
+                    // sweep's SWEEP_SECONDS.
+                    self.sweep(o.pose.theta, state.truth).await?;
                     self.t += SWEEP_SECONDS;
-                    self.record(tick.truth);
+                    self.record(base.state().truth);
                     stopping = false;
-                    resync = true;
                     since_sweep = 0.0;
                 }
+                // Feeds the watchdog while the robot comes to rest.
+                base.set_velocity(0.0, 0.0).await?;
                 continue;
             }
             let cmd = self.controller.command(&self.ekf.pose(), step);
             since_sweep += step;
             if cmd.done || since_sweep >= SWEEP_EVERY_S {
                 stopping = !cmd.done;
-                rig.base
-                    .set_velocity(0.0, 0.0)
-                    .await
-                    .context("stopping the base")?;
+                base.set_velocity(0.0, 0.0).await?;
             } else {
-                rig.base
-                    .set_velocity(cmd.v, cmd.omega)
-                    .await
-                    .context("commanding the base")?;
+                base.set_velocity(cmd.v, cmd.omega).await?;
             }
         }
-        rig.base
-            .set_velocity(0.0, 0.0)
-            .await
-            .context("stopping the base")?;
-        self.base_reconnects = rig.base.stats().reconnects;
+        base.set_velocity(0.0, 0.0).await?;
+        self.base_reconnects = base.client().stats().reconnects;
         Ok(())
     }
 
@@ -481,11 +424,13 @@ impl Mission {
         if let Ok(mut s) = self.sensors.lock() {
             s.begin_xbee_sweep();
         }
+        self.runner.probe_mut().begin_sweep();
         let result = self
             .runner
             .scan(move || heading)
             .await
             .map_err(|e| anyhow::anyhow!("bearing sweep: {e}"))?;
+        self.runner.probe_mut().finish_sweep().await?;
         self.sweeps += 1;
         let obs: Vec<BeaconObservation> = result
             .report
@@ -583,7 +528,6 @@ impl Mission {
         self.rec
             .metric("beacons_mapped", self.ekf.beacon_count() as f64);
         self.rec.metric("sweeps", self.sweeps as f64);
-        self.rec.metric("late_sips", self.late_sips as f64);
         self.rec
             .metric("base_reconnects", self.base_reconnects as f64);
         self.rec.metric("observations", self.observations as f64);

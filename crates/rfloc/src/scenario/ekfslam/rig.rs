@@ -2,6 +2,10 @@
 //! emulator, each serving the master side of its own pseudo-terminal, and the real rfloc
 //! drivers (`AriaClient`, `XBeeClient`) on the slave sides, opened by path through
 //! `rfloc_transport::open` and recorded into the trial folder.
+//!
+//! The Pioneer emulator runs in lock-step (see [`super::lockstep`]); the coordinator answers an
+//! `ND` at once (no response spacing), so a whole round happens at the simulated time of its
+//! request: the trial never advances the clock while a round is in flight.
 
 use std::path::Path;
 use std::sync::{Arc, Mutex};
@@ -22,7 +26,7 @@ use rfloc_xbee::{
 };
 use tokio::task::JoinHandle;
 
-use super::truth_log::TruthLog;
+use super::lockstep::LockstepBase;
 use tokio_serial::SerialStream;
 
 /// The XBee link as the bearing scan uses it.
@@ -34,8 +38,6 @@ const EMULATOR_TIME_NOTE: &str = "timestamps: simulated seconds of the Pioneer e
 /// Settings of the rig that are not in the scenario file.
 #[derive(Debug, Clone, Copy)]
 pub struct RigSettings {
-    /// Simulated seconds per wall second.
-    pub time_scale: f64,
     /// Relative σ of each wheel's ground speed per emulator substep (10 ms); 0 = no slip.
     pub slip_relative_std: f64,
     /// Seed of the slip generator.
@@ -44,27 +46,25 @@ pub struct RigSettings {
 
 /// Running emulators and connected drivers of one trial.
 pub struct Rig {
-    pub base: AriaClient,
+    pub base: Arc<LockstepBase>,
     xbee: Option<XBeeLink>,
-    /// True pose per emulator tick.
-    pub truth: TruthLog,
     tasks: Vec<JoinHandle<()>>,
     /// Slave ends kept open so the masters never see a hang-up.
     _slaves: Vec<SerialStream>,
     sinks: Vec<CaptureSink>,
 }
 
-/// The Pioneer driver's settings for an emulator running `scale` times faster than wall time:
-/// the keep-alive pulse scaled (the robot's 2 s watchdog is simulated time), the link and
-/// handshake timeouts kept at wall-time floors. Fully scaled (100 ms of wall time at scale 20)
-/// they declared the link lost on a loaded machine, and the reconnection rebased the odometry.
-fn aria_config(scale: f64) -> AriaClientConfig {
-    let base = AriaClientConfig::default();
-    let scaled = base.clone().scaled(scale);
+/// The Pioneer driver's settings for a lock-step emulator: no keep-alive on wall time (the
+/// trial sends a command every tick; the robot's watchdog is simulated time), a link timeout
+/// no step comes near (the trial has its own), timestamps on the emulator's clock.
+fn aria_config(clock: SharedClock) -> AriaClientConfig {
     AriaClientConfig {
-        link_timeout: scaled.link_timeout.max(Duration::from_secs(1)),
-        sync_timeout: scaled.sync_timeout.max(Duration::from_millis(500)),
-        ..scaled
+        pulse_period: Duration::from_secs(24 * 3600),
+        link_timeout: Duration::from_secs(24 * 3600),
+        sync_timeout: Duration::from_secs(5),
+        close_linger: Duration::from_millis(100),
+        clock: Some(clock),
+        ..AriaClientConfig::default()
     }
 }
 
@@ -81,13 +81,10 @@ impl Rig {
     ) -> anyhow::Result<Rig> {
         let mut tasks = Vec::new();
         let mut slaves = Vec::new();
-        let scale = settings.time_scale;
 
         // Pioneer base.
         let (master, slave, base_link) = crate::sim::pty_link(9600)?;
-        let truth_log = TruthLog::new(scenario.start_pose(trial));
-        let emulator = RobotEmulator::new(EmulatorConfig {
-            time_scale: scale,
+        let mut emulator = RobotEmulator::new(EmulatorConfig {
             initial_pose: scenario.start_pose(trial),
             slip: (settings.slip_relative_std > 0.0).then_some(WheelSlip {
                 seed: settings.slip_seed,
@@ -95,8 +92,8 @@ impl Rig {
             }),
             noise_seed: scenario.trial_seed(trial),
             ..EmulatorConfig::default()
-        })
-        .with_motion_hook(truth_log.hook());
+        });
+        let control = emulator.lock_step();
         let robot = emulator.handle();
         tasks.push(tokio::spawn(async move {
             let mut emulator = emulator;
@@ -117,6 +114,7 @@ impl Rig {
                 EMULATOR_TIME_NOTE,
             ],
         )?;
+        base_sink.set_coalescing(true);
 
         // XBee coordinator in the reflector.
         let (master, slave, xbee_link) = crate::sim::pty_link(115_200)?;
@@ -145,7 +143,7 @@ impl Rig {
                 mode: ApiMode::Escaped,
                 nd_layout: NdLayout::ZigbeeOrDigiMesh,
                 append_rssi: true,
-                response_spacing: Duration::from_millis(1),
+                response_spacing: Duration::ZERO,
                 ..XBeeEmulatorConfig::default()
             },
         );
@@ -166,6 +164,7 @@ impl Rig {
                 EMULATOR_TIME_NOTE,
             ],
         )?;
+        xbee_sink.set_coalescing(true);
 
         // Drivers, opened by path as the daemon opens its devices.
         let connector_sink = base_sink.clone();
@@ -179,10 +178,11 @@ impl Rig {
                     Ok(Recorder::new(io, sink))
                 })
             },
-            aria_config(scale),
+            aria_config(Arc::clone(&clock)),
         )
         .await
         .context("connecting to the emulated Pioneer")?;
+        let base = Arc::new(LockstepBase::new(base, control, robot, base_sink.clone()));
         let xio = open(&xbee_link).await.context("opening the XBee pty")?;
         let xbee = XBeeClient::new(
             Recorder::new(xio, xbee_sink.clone()),
@@ -197,7 +197,6 @@ impl Rig {
         Ok(Rig {
             base,
             xbee: Some(xbee),
-            truth: truth_log,
             tasks,
             _slaves: slaves,
             sinks: vec![base_sink, xbee_sink],
@@ -209,7 +208,8 @@ impl Rig {
         self.xbee.take()
     }
 
-    /// Stops the base, closes the drivers, stops the emulators and flushes the captures.
+    /// Stops the base, closes the drivers, stops the emulators and flushes the captures. Every
+    /// other holder of [`Rig::base`] must be gone by then (else the driver is only dropped).
     pub async fn shutdown(self) {
         let Rig {
             base,
@@ -218,8 +218,9 @@ impl Rig {
             sinks,
             ..
         } = self;
-        if let Err(e) = base.shutdown().await {
-            tracing::warn!(error = %e, "Pioneer client shutdown");
+        match Arc::try_unwrap(base) {
+            Ok(base) => base.shutdown().await,
+            Err(_) => tracing::warn!("Pioneer driver still shared at shutdown; dropped"),
         }
         drop(xbee);
         for t in tasks {

@@ -1,0 +1,114 @@
+//! The emulated Pioneer in lock-step: simulated time moves only when the trial asks for a tick,
+//! and every tick is taken only after the emulator has handled every command the driver wrote.
+//!
+//! Why this is race-free over a real pty, where the kernel delivers bytes whenever it likes:
+//! - the barrier of a tick is the number of bytes the driver's `Recorder` has seen accepted by
+//!   the pty (the capture sink's `tx_bytes`), read after the trial's last command returned;
+//!   the emulator ticks only once it has read and handled at least that many bytes;
+//! - the driver writes only what the trial asks for: its wall-time keep-alive (PULSE) is off
+//!   and the link timeout is far beyond any step, so no byte lands at a time chosen by the
+//!   scheduler (the robot's 2 s watchdog is simulated time and the trial feeds it);
+//! - after a tick the trial waits until the driver has decoded that tick's SIP before it does
+//!   anything else, and checks that the driver has read every byte the emulator wrote; the
+//!   emulator publishes its new time before it writes the SIP, so every record of a capture
+//!   carries the simulated time at which its bytes were sent.
+//!
+//! The captures use the sink's coalescing: reads (writes) at one simulated time are one record,
+//! whatever chunks the pty delivered them in.
+
+use std::time::Duration;
+
+use anyhow::Context;
+use rfloc_aria::{AriaClient, EmulatorHandle, EmulatorState, Odometry, StepControl};
+use rfloc_transport::CaptureSink;
+
+/// How long a tick (barrier, simulation, SIP decoded) may take in wall time before the trial
+/// gives up.
+const STEP_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// The Pioneer driver and the lock-step emulator behind it.
+pub struct LockstepBase {
+    client: AriaClient,
+    control: StepControl,
+    sink: CaptureSink,
+    robot: EmulatorHandle,
+}
+
+impl LockstepBase {
+    /// Wraps a connected driver, the emulator's step control and handle, and the capture sink
+    /// the driver's link is recorded into (its byte counts are the barrier).
+    #[must_use]
+    pub fn new(
+        client: AriaClient,
+        control: StepControl,
+        robot: EmulatorHandle,
+        sink: CaptureSink,
+    ) -> Self {
+        Self {
+            client,
+            control,
+            sink,
+            robot,
+        }
+    }
+
+    /// The driver.
+    #[must_use]
+    pub fn client(&self) -> &AriaClient {
+        &self.client
+    }
+
+    /// The emulator's current state (simulated time, ground truth).
+    #[must_use]
+    pub fn state(&self) -> EmulatorState {
+        self.robot.state()
+    }
+
+    /// VEL and RVEL through the driver; returns once both are written.
+    ///
+    /// # Errors
+    /// The driver's error.
+    pub async fn set_velocity(&self, v: f64, w: f64) -> anyhow::Result<()> {
+        self.client
+            .set_velocity(v, w)
+            .await
+            .context("commanding the base")
+    }
+
+    /// One SIP period: the emulator handles everything written so far, simulates 100 ms and
+    /// sends its SIP; returns the driver's odometry from that SIP and the emulator's state.
+    ///
+    /// # Errors
+    /// A step or SIP that does not come within [`STEP_TIMEOUT`], a stopped emulator or
+    /// driver, or bytes on the link the driver did not read.
+    pub async fn tick(&self) -> anyhow::Result<(Odometry, EmulatorState)> {
+        let barrier = self.sink.tx_bytes();
+        let state = tokio::time::timeout(STEP_TIMEOUT, self.control.advance(1, barrier))
+            .await
+            .context("the emulated Pioneer did not take its step")??;
+        let mut odometry = self.client.odometry();
+        let o = *tokio::time::timeout(
+            STEP_TIMEOUT,
+            odometry.wait_for(|o| o.seq >= state.sips_sent),
+        )
+        .await
+        .context("no SIP from the emulated Pioneer")?
+        .context("the Pioneer driver stopped")?;
+        anyhow::ensure!(
+            o.seq == state.sips_sent && self.sink.rx_bytes() == state.tx_bytes,
+            "Pioneer link not in step: SIP {} of {}, {} of {} bytes read",
+            o.seq,
+            state.sips_sent,
+            self.sink.rx_bytes(),
+            state.tx_bytes
+        );
+        Ok((o, state))
+    }
+
+    /// Stops the robot and closes the driver (STOP, CLOSE).
+    pub async fn shutdown(self) {
+        if let Err(e) = self.client.shutdown().await {
+            tracing::warn!(error = %e, "Pioneer client shutdown");
+        }
+    }
+}
