@@ -5,6 +5,11 @@
 //! auxiliary channel is the main value moved by −1, 0 or +1 (seeded RNG), clamped to 0..7, as
 //! in the `a/b` pairs of the reference captures. A tag that was in range on the previous scan
 //! and is not now is reported once as `SCAN:-UID=…`.
+//!
+//! Scans happen every `scan_period / time_scale` of wall time, or, in lock-step mode
+//! ([`KtsEmulator::lock_step`]), only when the simulator asks through a [`ScanControl`]: each
+//! request names how many bytes the emulator must have read (and answered) before it scans,
+//! so a command the host wrote before the request is always in force for that scan.
 
 use std::collections::BTreeSet;
 use std::sync::Arc;
@@ -13,6 +18,7 @@ use std::time::Duration;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
+use tokio::sync::{mpsc, oneshot};
 use tokio::task::JoinHandle;
 use tracing::Instrument;
 
@@ -141,6 +147,58 @@ impl EmulatorConfig {
     }
 }
 
+/// What one lock-step scan did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ScanStep {
+    /// `SCAN:` lines written (0 when not scanning or nothing in range).
+    pub lines: usize,
+    /// Bytes the emulator has read so far.
+    pub rx_bytes: u64,
+    /// Bytes the emulator has written so far.
+    pub tx_bytes: u64,
+}
+
+#[derive(Debug)]
+struct ScanRequest {
+    after_rx_bytes: u64,
+    done: oneshot::Sender<ScanStep>,
+}
+
+/// Drives a lock-step emulator (see [`KtsEmulator::lock_step`]). Cheap to clone.
+#[derive(Debug, Clone)]
+pub struct ScanControl {
+    tx: mpsc::Sender<ScanRequest>,
+}
+
+impl ScanControl {
+    /// One scan period: once the emulator has read at least `after_rx_bytes` bytes and answered
+    /// every command in them, it scans (if scanning is on) and writes the report; returns what
+    /// it wrote. Pass the number of bytes the host has written so far.
+    ///
+    /// # Errors
+    /// `NotConnected` when the emulator is not serving (or stopped before the scan).
+    pub async fn scan(&self, after_rx_bytes: u64) -> std::io::Result<ScanStep> {
+        let gone = || std::io::Error::new(std::io::ErrorKind::NotConnected, "emulator stopped");
+        let (done, rx) = oneshot::channel();
+        self.tx
+            .send(ScanRequest {
+                after_rx_bytes,
+                done,
+            })
+            .await
+            .map_err(|_| gone())?;
+        rx.await.map_err(|_| gone())
+    }
+}
+
+/// Waits for the next scan request; never resolves without a receiver.
+async fn next_scan(steps: &mut Option<mpsc::Receiver<ScanRequest>>) -> Option<ScanRequest> {
+    match steps {
+        Some(rx) => rx.recv().await,
+        None => std::future::pending().await,
+    }
+}
+
 /// The emulated reader.
 #[derive(Debug)]
 pub struct KtsEmulator {
@@ -150,6 +208,10 @@ pub struct KtsEmulator {
     scanning: bool,
     echo: bool,
     in_field: BTreeSet<Uid>,
+    /// Lock-step mode: scan requests.
+    steps: Option<mpsc::Receiver<ScanRequest>>,
+    rx_bytes: u64,
+    tx_bytes: u64,
 }
 
 impl KtsEmulator {
@@ -164,7 +226,19 @@ impl KtsEmulator {
             scanning: false,
             echo: false,
             in_field: BTreeSet::new(),
+            steps: None,
+            rx_bytes: 0,
+            tx_bytes: 0,
         }
+    }
+
+    /// Switches to lock-step mode: scans happen only through the returned control (and its
+    /// clones), never on wall time; `time_scale` and `scan_period` are then not used.
+    #[must_use]
+    pub fn lock_step(&mut self) -> ScanControl {
+        let (tx, rx) = mpsc::channel(4);
+        self.steps = Some(rx);
+        ScanControl { tx }
     }
 
     /// Serves `io` in a new task.
@@ -201,8 +275,33 @@ impl KtsEmulator {
             .max(Duration::from_micros(100));
         let mut ticker = tokio::time::interval(period);
         ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        let mut steps = self.steps.take();
+        let wall_clock = steps.is_none();
+        let mut pending: Option<ScanRequest> = None;
         loop {
+            if pending
+                .as_ref()
+                .is_some_and(|p| self.rx_bytes >= p.after_rx_bytes)
+            {
+                if let Some(req) = pending.take() {
+                    let lines = if self.scanning {
+                        let report = self.scan_report();
+                        self.write_out(&mut wr, &report).await?;
+                        report.lines().count()
+                    } else {
+                        0
+                    };
+                    let _ = req.done.send(ScanStep {
+                        lines,
+                        rx_bytes: self.rx_bytes,
+                        tx_bytes: self.tx_bytes,
+                    });
+                }
+                continue;
+            }
+            // Biased: a command already received is answered before a scan due at once.
             tokio::select! {
+                biased;
                 n = rd.read(&mut buf) => {
                     let n = n?;
                     if n == 0 {
@@ -213,19 +312,33 @@ impl KtsEmulator {
                             FramedLine::Line(b) => self.answer(&String::from_utf8_lossy(&b)),
                             FramedLine::Overlong(_) => "ERROR\r\n".to_string(),
                         };
-                        wr.write_all(reply.as_bytes()).await?;
-                        wr.flush().await?;
+                        self.write_out(&mut wr, &reply).await?;
                     }
+                    self.rx_bytes += n as u64;
                 }
-                _ = ticker.tick(), if self.scanning => {
+                req = next_scan(&mut steps), if !wall_clock && pending.is_none() => match req {
+                    Some(req) => pending = Some(req),
+                    None => steps = None,
+                },
+                _ = ticker.tick(), if wall_clock && self.scanning => {
                     let report = self.scan_report();
-                    if !report.is_empty() {
-                        wr.write_all(report.as_bytes()).await?;
-                        wr.flush().await?;
-                    }
+                    self.write_out(&mut wr, &report).await?;
                 }
             }
         }
+    }
+
+    async fn write_out<W: AsyncWrite + Unpin>(
+        &mut self,
+        wr: &mut W,
+        text: &str,
+    ) -> std::io::Result<()> {
+        if !text.is_empty() {
+            self.tx_bytes += text.len() as u64;
+            wr.write_all(text.as_bytes()).await?;
+            wr.flush().await?;
+        }
+        Ok(())
     }
 
     /// The reply to one command line.

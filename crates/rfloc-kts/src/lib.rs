@@ -27,7 +27,7 @@ mod uid;
 pub use client::{KtsClient, KtsClientError, KtsConfig, KtsStats, TagEventSource, DEFAULT_BAUD};
 pub use codec::{CodecStats, KtsCodec};
 pub use command::KtsCommand;
-pub use emulator::{EmulatorConfig, KtsEmulator, TagGrid, UidScheme};
+pub use emulator::{EmulatorConfig, KtsEmulator, ScanControl, ScanStep, TagGrid, UidScheme};
 pub use event::{TagEvent, TagEventKind};
 pub use framing::{FramedLine, LineFramer, MAX_LINE_LEN};
 pub use line::{parse_line, KtsLine, MalformedLine, MalformedReason, Rssi};
