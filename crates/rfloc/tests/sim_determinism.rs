@@ -112,3 +112,25 @@ fn seed003_case1_runs_are_identical() {
     let c = sim(&other, &tmp.path().join("c"));
     assert_captures_differ(&a, &c, &caps);
 }
+
+#[test]
+fn seed002_3x3_runs_are_identical() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scenario = workspace().join("scenarios/seed002-3x3.toml");
+    let a = sim(&scenario, &tmp.path().join("a"));
+    let b = sim(&scenario, &tmp.path().join("b"));
+    let caps = ["pioneer.cap", "kts.cap"];
+    let bytes = assert_same(&a, &b, &caps);
+    assert_same(&a, &b, &["truth.csv", "estimate.csv"]);
+    eprintln!(
+        "seed002 3x3: {} captures identical, {bytes} bytes",
+        caps.len()
+    );
+    let other = variant(
+        &tmp.path().join("o"),
+        "seed002-3x3.toml",
+        &[("seed = 2002", "seed = 2102")],
+    );
+    let c = sim(&other, &tmp.path().join("c"));
+    assert_captures_differ(&a, &c, &caps);
+}

@@ -9,25 +9,29 @@
 //! - the coordinator answers `ND` with each beacon's RSSI from the scenario's XBee model
 //!   (`rfloc_sim::SensorSuite::xbee_rssi`), given the emulator's true pose and the
 //!   `SimulatedStepper`'s current angle;
-//! - the loop runs on the SIPs the driver decodes (every 100 ms of simulated time): EKF
-//!   prediction from the odometry increment, the waypoint controller on the estimate, VEL/RVEL
-//!   to the base. Every [`SWEEP_EVERY_S`] of driving the robot stops (the seed sweeps at a
-//!   standstill), the `ScanRunner` turns the simulated stepper through 40 stops of 9° with one
-//!   `ND` round per stop, and each beacon's peak RSSI and fitted bearing update the filter
-//!   (known association by 64-bit address);
+//! - the emulated Pioneer runs in lock-step with the trial (`lockstep`): each loop iteration
+//!   asks for one 100 ms tick, which the emulator takes only after handling every command the
+//!   driver wrote, and waits for that tick's SIP; the loop then runs the EKF prediction from the
+//!   odometry increment, the waypoint controller on the estimate, and sends VEL/RVEL (a command
+//!   every tick, which also feeds the robot's watchdog; the driver's wall-time PULSE is off).
+//!   Every [`SWEEP_EVERY_S`] of driving the robot stops (the seed sweeps at a standstill), the
+//!   `ScanRunner` turns the simulated stepper through 40 stops of 9° with one `ND` round per
+//!   stop, and each beacon's peak RSSI and fitted bearing update the filter (known association
+//!   by 64-bit address). A sweep takes [`SWEEP_SECONDS`] of simulated time: the probe ticks the
+//!   standing robot once every second round;
 //! - truth and estimate are recorded at every SIP on the trial's *mission clock*: SIP periods
-//!   plus a fixed [`SWEEP_SECONDS`] per sweep (a sample without wheel motion counts one
-//!   period). The wall time a sweep's pty round trips take, which varies from run to run,
-//!   never enters the numbers. The trial ends at the scenario's `duration_s` of mission time
-//!   or when the last waypoint is reached (`successes`).
+//!   plus [`SWEEP_SECONDS`] per sweep, which is the emulator's clock less the settling ticks.
+//!   The true pose is the emulator's state after the tick. The trial ends at the scenario's
+//!   `duration_s` of mission time or when the last waypoint is reached (`successes`).
 //!
 //! Odometry error. The seed's Table 3.1 motion noise alone makes dead reckoning better than
 //! the seed's EKF-SLAM (see the rfloc-sim README), so the wheels slip: each wheel's travel
 //! gets a relative Gaussian error per 10 ms substep, σ = the scenario's `drive.slip_sigma`, or
 //! [`DEFAULT_SLIP_SIGMA`] when the scenario sets none (the seed003 scenario files set none).
 //! It is applied to the odometry increments between the driver and the filter (`slip`), not
-//! by the emulator's own `WheelSlip`, whose draws depend on wall time (see `slip`). The filter
-//! is told the same error model. The odometry-only error is reported beside the
+//! by the emulator's own `WheelSlip` (that one perturbs the truth, which would change the
+//! error model the filter is told about; its draws are per simulated tick, so it would be
+//! reproducible too). The filter is told the same error model. The odometry-only error is reported beside the
 //! filter's (`odometry_rmse_m`, `odometry_rmse_theta_rad`).
 //!
 //! Measurement model given to the filter: eq. 2.7 with the scenario's `P_ref` and η; the
@@ -42,13 +46,11 @@
 //! `*_z_rms`).
 //!
 //! Reproducibility. Every random draw is seeded from the trial seed (sensor streams of
-//! `SensorSuite`, the odometry slip), the truth is read per emulator tick from a motion hook,
-//! and the clock counts SIPs. The emulators still run on wall time (`--time-scale` simulated
-//! seconds per second), so a command lands in the tick after the SIP it answers only if it
-//! reaches the emulated Pioneer in time: runs that kept up were identical bit for bit (three
-//! repeated 40 s runs at time scale 10, `late_sips` = 0); on a loaded machine the loop falls
-//! behind (`late_sips` counts the SIPs it skipped while driving) or a command arrives just as
-//! a tick fires (the emulator's `select!` then picks either), and the run drifts slightly.
+//! `SensorSuite`, the odometry slip), the emulated Pioneer moves only when the trial ticks it,
+//! after it has handled every byte the driver wrote, and the coordinator answers an `ND` within
+//! the simulated instant of the request. A run is therefore a function of the scenario and the
+//! seed alone: two runs with one seed write identical captures, truth and estimate files
+//! (`tests/sim_determinism.rs`), however loaded the machine. `--time-scale` does not apply.
 
 use std::collections::BTreeMap;
 use std::path::Path;

@@ -14,26 +14,33 @@
 //!   from odometry, continuous); its first fix is the trial's answer, scored against the
 //!   emulator's true pose at that moment. The pipeline then keeps tracking until the end.
 //!
-//! Times of truth and estimates are the emulator's simulated seconds, so the numbers do not
-//! depend on how fast the machine runs the trial.
+//! Both emulators run in lock-step with the trial: per 100 ms tick the Pioneer simulates one
+//! SIP period (after handling every command the driver wrote, see `ekfslam::lockstep`), then
+//! the reader scans once at the new true pose (after answering every line the driver wrote);
+//! the trial waits for the tick's SIP and for every tag event of the scan, hands the pipeline
+//! the odometry first and then the scan's tag events, and sends its command. Times of truth,
+//! estimates, events and capture records are the Pioneer emulator's simulated seconds, and a
+//! run depends on the scenario and seed alone: two runs with one seed write identical files
+//! (`tests/sim_determinism.rs`). `--time-scale` does not apply.
 
 use std::path::Path;
 use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::Context;
-use rfloc_aria::{AriaClient, EmulatorConfig as RobotConfig, RobotEmulator};
+use rfloc_aria::{
+    AriaClient, ClientConfig as AriaClientConfig, EmulatorConfig as RobotConfig, RobotEmulator,
+};
 use rfloc_kts::{
     EmulatorConfig as ReaderConfig, KtsClient, KtsConfig, KtsEmulator, TagGrid, Uid, UidScheme,
 };
 use rfloc_pose::{angle_diff, EstimateMode, Pose2};
-use rfloc_sim::metrics::interpolate;
 use rfloc_sim::recorder::TrialRecorder;
 use rfloc_sim::Scenario;
-use rfloc_sim::TimedPose;
 use rfloc_transport::{open, Recorder, SharedClock};
 use tokio_util::sync::CancellationToken;
 
+use super::ekfslam::lockstep::LockstepBase;
 use super::SimOptions;
 use crate::config::{GridTag, HfGridSettings};
 use crate::events::DeviceEvent;
@@ -47,6 +54,8 @@ const CAPTURE_NOTE: &str =
     "simulated seed 002 initialisation turn; timestamps are the Pioneer emulator's simulated seconds";
 /// Pause at each 45° stop, simulated seconds.
 const STOP_PAUSE_S: f64 = 0.5;
+/// How long the trial waits (wall time) for a scan or a tag event before it gives up.
+const STEP_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// A world tag's full ISO 15693 UID: short IDs (seed 002 Table 9 prints only the last hex
 /// digits) get the seed's UID prefix.
@@ -156,20 +165,21 @@ pub async fn run_trial(
     dir: &Path,
     opts: &SimOptions,
 ) -> anyhow::Result<TrialRecorder> {
+    // Lock-step emulators: `opts.time_scale` does not apply.
+    let _ = opts;
     let mut rec = TrialRecorder::new(scenario, trial);
     let start = scenario.start_pose(trial);
     let seed = scenario.trial_seed(trial);
-    let scale = opts.time_scale.clamp(0.1, 200.0);
     let stop = CancellationToken::new();
 
-    // Pioneer emulator on a pty.
+    // Pioneer emulator on a pty, in lock-step.
     let (robot_master, robot_slave, robot_link) = pty_link(9600)?;
     let mut robot = RobotEmulator::new(RobotConfig {
-        time_scale: scale,
         initial_pose: start,
         noise_seed: seed,
         ..RobotConfig::default()
     });
+    let robot_control = robot.lock_step();
     let truth = robot.handle();
     let clock: SharedClock = Arc::new(EmulatorClock(truth.clone()));
     let robot_stop = stop.clone();
@@ -180,7 +190,7 @@ pub async fn run_trial(
         }
     });
 
-    // KTS emulator on a pty, antenna following the true pose.
+    // KTS emulator on a pty, antenna following the true pose, scanning once per tick.
     let (reader_master, reader_slave, reader_link) = pty_link(115_200)?;
     let antenna_truth = truth.clone();
     let antenna = Arc::new(move || {
@@ -189,10 +199,10 @@ pub async fn run_trial(
             .transform_point(-ANTENNA_OFFSET_M, 0.0)
     });
     let mut rcfg = ReaderConfig::new(reader_grid(scenario)?, antenna);
-    rcfg.time_scale = scale;
     rcfg.seed = seed;
     rcfg.miss_probability = 0.1;
-    let reader = KtsEmulator::new(rcfg);
+    let mut reader = KtsEmulator::new(rcfg);
+    let reader_control = reader.lock_step();
     let reader_stop = stop.clone();
     let reader_task = tokio::spawn(async move {
         tokio::select! {
@@ -201,35 +211,40 @@ pub async fn run_trial(
         }
     });
 
-    // Drivers through the pty paths, recorded.
-    let base_io = Recorder::new(
-        open(&robot_link).await?,
-        trial_capture(
-            dir,
-            "pioneer.cap",
-            "pioneer-aria",
-            &robot_link,
-            clock.clone(),
-            &[CAPTURE_NOTE],
-        )?,
-    );
-    let base = AriaClient::from_stream(
-        base_io,
-        crate::devices::scaled_base_config(clock.clone(), 1.0, scale),
-    )
-    .await
-    .context("Pioneer handshake")?;
-    let reader_io = Recorder::new(
-        open(&reader_link).await?,
-        trial_capture(
-            dir,
-            "kts.cap",
-            "kts-rfidm1356",
-            &reader_link,
-            clock.clone(),
-            &[CAPTURE_NOTE],
-        )?,
-    );
+    // Drivers through the pty paths, recorded (same-time chunks coalesced).
+    let base_sink = trial_capture(
+        dir,
+        "pioneer.cap",
+        "pioneer-aria",
+        &robot_link,
+        clock.clone(),
+        &[CAPTURE_NOTE],
+    )?;
+    base_sink.set_coalescing(true);
+    let base_io = Recorder::new(open(&robot_link).await?, base_sink.clone());
+    // No wall-time keep-alive or link timeout: the trial commands the robot in simulated time.
+    let base_config = AriaClientConfig {
+        pulse_period: Duration::from_secs(24 * 3600),
+        link_timeout: Duration::from_secs(24 * 3600),
+        sync_timeout: Duration::from_secs(5),
+        close_linger: Duration::from_millis(100),
+        clock: Some(clock.clone()),
+        ..AriaClientConfig::default()
+    };
+    let base = AriaClient::from_stream(base_io, base_config)
+        .await
+        .context("Pioneer handshake")?;
+    let base = LockstepBase::new(base, robot_control, truth.clone(), base_sink);
+    let reader_sink = trial_capture(
+        dir,
+        "kts.cap",
+        "kts-rfidm1356",
+        &reader_link,
+        clock.clone(),
+        &[CAPTURE_NOTE],
+    )?;
+    reader_sink.set_coalescing(true);
+    let reader_io = Recorder::new(open(&reader_link).await?, reader_sink.clone());
     let mut kts = KtsClient::spawn(
         reader_io,
         KtsConfig {
@@ -242,74 +257,79 @@ pub async fn run_trial(
     kts.start_scan().await.context("start scanning")?;
 
     // The turn: eight 45° steps at the scenario's turn rate, pausing at each stop. Closed loop
-    // on the driver's odometry (as a robot would do it), so a busy machine that sends a command
-    // late changes the timing, not the angle turned.
+    // on the driver's odometry, as a robot would do it.
     let rate = scenario.spec.robot.drive.max_turn_rate.clamp(0.1, 2.0);
     let mut turn = TurnScript::new(rate);
     // A hard stop in case the base never turns (e.g. stalled): three times the scenario's time.
     let end_s = 3.0 * scenario.spec.duration_s.max(10.0);
 
     let mut pipeline = HfGridPipeline::new(&pipeline_settings(scenario));
-    let mut odom = base.odometry();
     let mut fix: Option<(f64, Pose2, Pose2)> = None; // (time, estimate, truth)
     let mut tracking: Vec<f64> = Vec::new(); // position errors after the fix
     let mut commanded = f64::NAN;
     let mut last_cmd_t = f64::NEG_INFINITY;
     let mut last_odom: Option<Pose2> = None;
-    let mut truth_log: Vec<TimedPose> = Vec::new();
-    let mut tick = tokio::time::interval(Duration::from_secs_f64(0.02));
     loop {
-        let now = truth.state().sim_time;
-        if now >= end_s || turn.finished_at.is_some_and(|t| now > t + 2.0) {
+        // One tick: the robot moves under the last command, the reader scans at the new pose.
+        let (o, t) = base.tick().await?;
+        let scan = tokio::time::timeout(STEP_TIMEOUT, reader_control.scan(reader_sink.tx_bytes()))
+            .await
+            .context("the emulated reader did not scan")??;
+        let now = t.sim_time;
+        if let Some(prev) = last_odom.replace(o.pose) {
+            turn.turned += angle_diff(o.pose.theta, prev.theta).abs();
+        }
+        rec.truth(now, t.truth);
+        let ev = DeviceEvent::Odometry {
+            device: "base".into(),
+            t: o.time,
+            pose: o.pose,
+            v: o.v,
+            w: o.w,
+        };
+        if let Some(est) = pipeline.handle(&ev) {
+            if est.mode == EstimateMode::Fix {
+                if fix.is_none() {
+                    // The seed's measure is the initial pose: that is the trial's estimate,
+                    // scored against the truth of the tick the odometry came from.
+                    fix = Some((o.time, est.pose, t.truth));
+                    rec.estimate(o.time, est.pose);
+                } else {
+                    tracking.push(est.pose.distance(&t.truth));
+                }
+            }
+        }
+        // Every tag event of the scan, in the order the reader reported them.
+        for _ in 0..scan.lines {
+            let ev = tokio::time::timeout(STEP_TIMEOUT, tags.recv())
+                .await
+                .context("a tag event of the scan did not come")?
+                .context("the KTS driver stopped")?;
+            if let Some(e) = DeviceEvent::from_tag_event("hf", &ev) {
+                let _ = pipeline.handle(&e);
+            }
+        }
+        anyhow::ensure!(
+            reader_sink.rx_bytes() == scan.tx_bytes,
+            "reader link not in step: {} of {} bytes read",
+            reader_sink.rx_bytes(),
+            scan.tx_bytes
+        );
+        if now >= end_s || turn.finished_at.is_some_and(|f| now > f + 2.0) {
             break;
         }
-        tokio::select! {
-            changed = odom.changed() => {
-                if changed.is_err() { break; }
-                let o = *odom.borrow_and_update();
-                if let Some(prev) = last_odom.replace(o.pose) {
-                    turn.turned += angle_diff(o.pose.theta, prev.theta).abs();
-                }
-                let t = truth.state();
-                rec.truth(t.sim_time, t.truth);
-                truth_log.push(TimedPose::new(t.sim_time, t.truth));
-                let ev = DeviceEvent::Odometry { device: "base".into(), t: o.time, pose: o.pose, v: o.v, w: o.w };
-                if let Some(est) = pipeline.handle(&ev) {
-                    if est.mode == EstimateMode::Fix {
-                        if fix.is_none() {
-                            // The seed's measure is the initial pose: that is the trial's estimate.
-                            // Scored against the truth at the odometry's own time: the loop may
-                            // run behind the emulator while the robot is still turning.
-                            let tru = interpolate(&truth_log, o.time).unwrap_or(t.truth);
-                            fix = Some((o.time, est.pose, tru));
-                            rec.estimate(o.time, est.pose);
-                        } else {
-                            let tru = interpolate(&truth_log, o.time).unwrap_or(t.truth);
-                            tracking.push(est.pose.distance(&tru));
-                        }
-                    }
-                }
-            }
-            ev = tags.recv() => {
-                let Some(ev) = ev else { break };
-                if let Some(e) = DeviceEvent::from_tag_event("hf", &ev) {
-                    let _ = pipeline.handle(&e);
-                }
-            }
-            _ = tick.tick() => {
-                let w = turn.command(now);
-                // Re-send every 0.5 simulated seconds to keep the robot's watchdog fed.
-                if (w - commanded).abs() > 1e-9 || now - last_cmd_t > 0.5 {
-                    base.set_velocity(0.0, w).await.context("velocity command")?;
-                    commanded = w;
-                    last_cmd_t = now;
-                }
-            }
+        let w = turn.command(now);
+        // Re-send every 0.5 simulated seconds to keep the robot's watchdog fed.
+        if (w - commanded).abs() > 1e-9 || now - last_cmd_t > 0.5 {
+            base.set_velocity(0.0, w).await?;
+            commanded = w;
+            last_cmd_t = now;
         }
     }
     base.set_velocity(0.0, 0.0).await.ok();
     let _ = kts.stop_scan().await;
-    base.shutdown().await.ok();
+    base.shutdown().await;
+    drop(kts);
     stop.cancel();
     let _ = tokio::join!(robot_task, reader_task);
     drop((robot_slave, reader_slave));

@@ -1,13 +1,12 @@
 //! Seeded wheel slip between the robot's ground motion and its encoders, applied to the
 //! odometry increments the pipeline receives.
 //!
-//! `rfloc_aria::WheelSlip` perturbs the emulator's ground truth, but its generator draws two
-//! values on every 10 ms substep from the moment the emulator starts serving, standing still
-//! or not. The number of standstill substeps (handshake, sweeps) depends on how long pty round
-//! trips take in wall time, so the slip sequence, and every number of a trial, would change
-//! from run to run. Here the draws happen only for increments in which the wheels turned,
-//! so a trial is reproducible; the error model is the emulator's (a relative Gaussian error of
-//! each wheel's travel per substep).
+//! `rfloc_aria::WheelSlip` perturbs the emulator's ground truth instead (the encoders stay
+//! exact). Its draws are a function of the simulated tick, so in a lock-step trial it would be
+//! reproducible as well; the trial keeps the error on the odometry side, where the filter's
+//! noise model describes it. Here the draws happen only for increments in which the wheels
+//! turned; the error model is the emulator's (a relative Gaussian error of each wheel's travel
+//! per substep).
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
