@@ -303,6 +303,12 @@ pub struct EkfSlamSettings {
     /// Odometry heading error per radian turned (σ, dimensionless).
     #[serde(default = "default_odometry_rot")]
     pub odometry_rot_per_rad: f64,
+    /// Odometry heading error per metre travelled (σ, rad/m).
+    #[serde(default = "default_odometry_rot_per_m")]
+    pub odometry_rot_per_m: f64,
+}
+fn default_odometry_rot_per_m() -> f64 {
+    0.01
 }
 fn default_sweep_every() -> f64 {
     3.0
@@ -711,6 +717,7 @@ impl RobotConfig {
                 ("bearing_floor_deg", e.bearing_floor_deg),
                 ("odometry_trans_per_m", e.odometry_trans_per_m),
                 ("odometry_rot_per_rad", e.odometry_rot_per_rad),
+                ("odometry_rot_per_m", e.odometry_rot_per_m),
             ] {
                 if !(value.is_finite() && value >= 0.0) {
                     return Err(err(

@@ -289,6 +289,9 @@ pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
                 route(request, motion.as_ref(), sweeps.as_ref());
             }
             if let Some(mut est) = estimate {
+                if let Some(sim) = sim.as_mut() {
+                    sim.score(&est);
+                }
                 if stale.values().any(|s| *s) && est.mode == EstimateMode::Fix {
                     est.mode = EstimateMode::Degraded;
                 }

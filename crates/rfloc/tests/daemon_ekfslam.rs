@@ -26,6 +26,7 @@ fn config(dir: &std::path::Path, port: u16) -> std::path::PathBuf {
         )
         .replace("time_scale = 5.0", "time_scale = 10.0")
         .replace("duration_s = 200.0", "duration_s = 1000.0")
+        .replace("slip_sigma = 0.05", "slip_sigma = 0.02")
         .replace(
             "[pose]",
             &format!(
@@ -33,7 +34,11 @@ fn config(dir: &std::path::Path, port: u16) -> std::path::PathBuf {
                 dir.join("cap").display().to_string()
             ),
         );
-    assert!(text.contains("time_scale = 10.0") && text.contains(&format!(":{port}")));
+    assert!(
+        text.contains("slip_sigma = 0.02")
+            && text.contains("time_scale = 10.0")
+            && text.contains(&format!(":{port}"))
+    );
     let path = dir.join("robot.toml");
     std::fs::write(&path, text).unwrap();
     path

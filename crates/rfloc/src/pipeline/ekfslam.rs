@@ -94,6 +94,7 @@ impl EkfSlamPipeline {
             odometry_noise: OdometryNoise {
                 trans_per_m: s.odometry_trans_per_m,
                 rot_per_rad: s.odometry_rot_per_rad,
+                rot_per_m: s.odometry_rot_per_m,
                 ..OdometryNoise::default()
             },
             delayed_init: DelayedInit {

@@ -69,6 +69,55 @@ pub struct SimRuntime {
     config: SimulationConfig,
     /// The rotator the emulated XBee radio's RSSI follows, until the daemon takes it.
     stepper: Option<SimulatedStepper>,
+    /// Published estimates against the truth.
+    score: TruthScore,
+    /// The robot's own odometry (dead reckoning from the start pose) against the truth, sampled
+    /// with the estimates: the baseline an estimator has to beat.
+    dead_reckoning: TruthScore,
+    start: Pose2,
+}
+
+/// Published poses scored against the emulated robot's true pose.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct TruthScore {
+    /// Poses scored.
+    pub poses: u64,
+    sum_sq: f64,
+    /// Largest position error, metres.
+    pub max_m: f64,
+    /// Position error of the last pose, metres.
+    pub last_m: f64,
+    sum_sq_heading: f64,
+}
+
+impl TruthScore {
+    /// Root mean square position error, metres.
+    #[must_use]
+    pub fn rms_m(&self) -> f64 {
+        if self.poses == 0 {
+            return f64::NAN;
+        }
+        (self.sum_sq / self.poses as f64).sqrt()
+    }
+
+    /// Root mean square heading error, radians.
+    #[must_use]
+    pub fn rms_heading_rad(&self) -> f64 {
+        if self.poses == 0 {
+            return f64::NAN;
+        }
+        (self.sum_sq_heading / self.poses as f64).sqrt()
+    }
+
+    fn add(&mut self, estimate: &Pose2, truth: &Pose2) {
+        let e = estimate.distance(truth);
+        let h = rfloc_pose::angle_diff(estimate.theta, truth.theta);
+        self.poses += 1;
+        self.sum_sq += e * e;
+        self.sum_sq_heading += h * h;
+        self.max_m = self.max_m.max(e);
+        self.last_m = e;
+    }
 }
 
 impl SimRuntime {
@@ -76,6 +125,26 @@ impl SimRuntime {
     #[must_use]
     pub fn truth(&self) -> Option<Pose2> {
         self.base.as_ref().map(EmulatorHandle::truth)
+    }
+
+    /// Scores a published estimate against the true pose at the estimate's time (pose stamps
+    /// are the emulator's simulated seconds). The truth is read now and carried back to the
+    /// estimate's stamp with the robot's current speeds (the gap is the estimator's lag,
+    /// normally under one 100 ms SIP period).
+    pub fn score(&mut self, estimate: &rfloc_pose::PoseEstimate) {
+        if estimate.mode == rfloc_pose::EstimateMode::NoFix {
+            return;
+        }
+        let Some(base) = &self.base else { return };
+        let state = base.state();
+        let lag = (state.sim_time - estimate.time).clamp(0.0, 1.0);
+        let back = Pose2::new(-state.v * lag, 0.0, -state.w * lag);
+        let truth = state.truth.compose(&back);
+        if truth.is_finite() && estimate.pose.is_finite() {
+            self.score.add(&estimate.pose, &truth);
+            let odometry = self.start.compose(&state.odometry);
+            self.dead_reckoning.add(&odometry, &state.truth);
+        }
     }
 
     /// The emulated robot's simulated clock, if there is a base.
@@ -100,6 +169,20 @@ impl SimRuntime {
                 y = t.y,
                 theta = t.theta,
                 "simulated robot final true pose"
+            );
+        }
+        let (s, d) = (self.score, self.dead_reckoning);
+        if s.poses > 0 {
+            tracing::info!(
+                poses = s.poses,
+                rms_m = s.rms_m(),
+                max_m = s.max_m,
+                last_m = s.last_m,
+                rms_heading_deg = s.rms_heading_rad().to_degrees(),
+                odometry_rms_m = d.rms_m(),
+                odometry_last_m = d.last_m,
+                odometry_rms_heading_deg = d.rms_heading_rad().to_degrees(),
+                "simulation: published poses against the true pose"
             );
         }
         self.emulators.cancel();
@@ -138,6 +221,9 @@ pub async fn start(
         _slaves: Vec::new(),
         config: sim.clone(),
         stepper: None,
+        score: TruthScore::default(),
+        dead_reckoning: TruthScore::default(),
+        start: Pose2::new(sim.start[0], sim.start[1], sim.start[2].to_radians()),
     };
     let start = Pose2::new(sim.start[0], sim.start[1], sim.start[2].to_radians());
     let antenna_offset = match &cfg.estimator {
