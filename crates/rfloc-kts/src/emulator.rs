@@ -161,6 +161,8 @@ pub struct ScanStep {
 #[derive(Debug)]
 struct ScanRequest {
     after_rx_bytes: u64,
+    /// Scan, or only report the counters (see [`ScanControl::settle`]).
+    scan: bool,
     done: oneshot::Sender<ScanStep>,
 }
 
@@ -178,11 +180,25 @@ impl ScanControl {
     /// # Errors
     /// `NotConnected` when the emulator is not serving (or stopped before the scan).
     pub async fn scan(&self, after_rx_bytes: u64) -> std::io::Result<ScanStep> {
+        self.request(after_rx_bytes, true).await
+    }
+
+    /// As [`ScanControl::scan`] without the scan: returns the counters once the emulator has
+    /// read `after_rx_bytes` bytes and answered them (so `tx_bytes` includes every reply).
+    ///
+    /// # Errors
+    /// As [`ScanControl::scan`].
+    pub async fn settle(&self, after_rx_bytes: u64) -> std::io::Result<ScanStep> {
+        self.request(after_rx_bytes, false).await
+    }
+
+    async fn request(&self, after_rx_bytes: u64, scan: bool) -> std::io::Result<ScanStep> {
         let gone = || std::io::Error::new(std::io::ErrorKind::NotConnected, "emulator stopped");
         let (done, rx) = oneshot::channel();
         self.tx
             .send(ScanRequest {
                 after_rx_bytes,
+                scan,
                 done,
             })
             .await
@@ -284,7 +300,7 @@ impl KtsEmulator {
                 .is_some_and(|p| self.rx_bytes >= p.after_rx_bytes)
             {
                 if let Some(req) = pending.take() {
-                    let lines = if self.scanning {
+                    let lines = if req.scan && self.scanning {
                         let report = self.scan_report();
                         self.write_out(&mut wr, &report).await?;
                         report.lines().count()

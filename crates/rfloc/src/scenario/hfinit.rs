@@ -40,7 +40,7 @@ use rfloc_sim::Scenario;
 use rfloc_transport::{open, Recorder, SharedClock};
 use tokio_util::sync::CancellationToken;
 
-use super::ekfslam::lockstep::LockstepBase;
+use super::ekfslam::lockstep::{read_all, LockstepBase};
 use super::SimOptions;
 use crate::config::{GridTag, HfGridSettings};
 use crate::events::DeviceEvent;
@@ -255,6 +255,11 @@ pub async fn run_trial(
     );
     let mut tags = kts.take_events().context("tag events")?;
     kts.start_scan().await.context("start scanning")?;
+    // Its `OK` is read completely before the clock moves.
+    let settled = tokio::time::timeout(STEP_TIMEOUT, reader_control.settle(reader_sink.tx_bytes()))
+        .await
+        .context("the emulated reader did not settle")??;
+    read_all(&reader_sink, settled.tx_bytes).await?;
 
     // The turn: eight 45° steps at the scenario's turn rate, pausing at each stop. Closed loop
     // on the driver's odometry, as a robot would do it.
@@ -309,12 +314,7 @@ pub async fn run_trial(
                 let _ = pipeline.handle(&e);
             }
         }
-        anyhow::ensure!(
-            reader_sink.rx_bytes() == scan.tx_bytes,
-            "reader link not in step: {} of {} bytes read",
-            reader_sink.rx_bytes(),
-            scan.tx_bytes
-        );
+        read_all(&reader_sink, scan.tx_bytes).await?;
         if now >= end_s || turn.finished_at.is_some_and(|f| now > f + 2.0) {
             break;
         }

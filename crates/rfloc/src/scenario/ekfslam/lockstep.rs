@@ -8,8 +8,8 @@
 //! - the driver writes only what the trial asks for: its wall-time keep-alive (PULSE) is off
 //!   and the link timeout is far beyond any step, so no byte lands at a time chosen by the
 //!   scheduler (the robot's 2 s watchdog is simulated time and the trial feeds it);
-//! - after a tick the trial waits until the driver has decoded that tick's SIP before it does
-//!   anything else, and checks that the driver has read every byte the emulator wrote; the
+//! - after a tick the trial waits until the driver has decoded that tick's SIP and has read
+//!   every byte the emulator wrote ([`read_all`]) before it does anything else; the
 //!   emulator publishes its new time before it writes the SIP, so every record of a capture
 //!   carries the simulated time at which its bytes were sent.
 //!
@@ -25,6 +25,29 @@ use rfloc_transport::CaptureSink;
 /// How long a tick (barrier, simulation, SIP decoded) may take in wall time before the trial
 /// gives up.
 const STEP_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// Waits until the driver recorded in `sink` has read `target` bytes (everything its emulator
+/// wrote). A driver may act on a message before its last byte is read (a line is complete at
+/// `\r`, its `\n` comes later); the clock must not move before that byte is read, or the
+/// capture would stamp it with a later time in some runs.
+///
+/// # Errors
+/// The bytes do not come within [`STEP_TIMEOUT`], or more came than were written.
+pub async fn read_all(sink: &CaptureSink, target: u64) -> anyhow::Result<()> {
+    tokio::time::timeout(STEP_TIMEOUT, async {
+        while sink.rx_bytes() < target {
+            tokio::time::sleep(Duration::from_millis(1)).await;
+        }
+    })
+    .await
+    .context("the driver did not read everything its emulator wrote")?;
+    anyhow::ensure!(
+        sink.rx_bytes() == target,
+        "link not in step: {} bytes read, {target} written",
+        sink.rx_bytes()
+    );
+    Ok(())
+}
 
 /// The Pioneer driver and the lock-step emulator behind it.
 pub struct LockstepBase {
@@ -94,13 +117,12 @@ impl LockstepBase {
         .await
         .context("no SIP from the emulated Pioneer")?
         .context("the Pioneer driver stopped")?;
+        read_all(&self.sink, state.tx_bytes).await?;
         anyhow::ensure!(
-            o.seq == state.sips_sent && self.sink.rx_bytes() == state.tx_bytes,
-            "Pioneer link not in step: SIP {} of {}, {} of {} bytes read",
+            o.seq == state.sips_sent,
+            "Pioneer link not in step: SIP {} of {}",
             o.seq,
-            state.sips_sent,
-            self.sink.rx_bytes(),
-            state.tx_bytes
+            state.sips_sent
         );
         Ok((o, state))
     }
