@@ -2,6 +2,12 @@
 //! response per beacon that hears it (then the end frame), local `DB`, remote `DB` (0x17), and
 //! a few registers (`NT`, `AP`, `SH`, `SL`, `NI`). Beacon RSSI comes from a supplied function,
 //! so a simulator can put path loss and an antenna pattern behind it.
+//!
+//! Timing. Replies are scheduled on wall time (`response_spacing` between `ND` responses,
+//! `remote_failure_delay`). The coordinator sends nothing unsolicited, so with a zero
+//! `response_spacing` a whole `ND` round (and every local reply) is written while the request
+//! is handled, inside the simulated instant of the request: a lock-step simulator that does not
+//! move its clock while a round is in flight gets its replies at deterministic simulated times.
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
