@@ -21,6 +21,7 @@ mod error;
 mod filter;
 pub mod models;
 mod observation;
+mod wheel_slip;
 
 pub use config::{
     twist_from_wheel_speeds, CovarianceUpdate, DelayedInit, EkfSlamConfig, Gate, OdometryNoise,
@@ -32,3 +33,4 @@ pub use filter::{BeaconEstimate, EkfSlam, FilterStats};
 pub use observation::{
     BeaconId, BeaconObservation, BearingReading, ObservationOutcome, RangeReading,
 };
+pub use wheel_slip::{wheel_travel, WheelSlipNoise};

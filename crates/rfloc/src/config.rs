@@ -306,6 +306,20 @@ pub struct EkfSlamSettings {
     /// Odometry heading error per metre travelled (σ, rad/m).
     #[serde(default = "default_odometry_rot_per_m")]
     pub odometry_rot_per_m: f64,
+    /// Wheel-slip odometry model; when given it replaces the three `odometry_*` σ above.
+    pub wheel_slip: Option<WheelSlipSettings>,
+}
+
+/// Odometry error as wheel slip: relative σ of each wheel's travel per interval.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WheelSlipSettings {
+    /// Relative σ of one wheel's travel per interval.
+    pub relative_sigma: f64,
+    /// Wheel track, metres.
+    pub track_m: f64,
+    /// Interval of one draw, seconds.
+    pub interval_s: f64,
 }
 fn default_odometry_rot_per_m() -> f64 {
     0.01
@@ -723,6 +737,20 @@ impl RobotConfig {
                     return Err(err(
                         &format!("estimator.{key}"),
                         format!("must be zero or positive, not {value}"),
+                    ));
+                }
+            }
+            if let Some(w) = &e.wheel_slip {
+                if !(w.relative_sigma.is_finite()
+                    && w.relative_sigma >= 0.0
+                    && w.track_m.is_finite()
+                    && w.track_m > 0.0
+                    && w.interval_s.is_finite()
+                    && w.interval_s > 0.0)
+                {
+                    return Err(err(
+                        "estimator.wheel_slip",
+                        "relative_sigma ≥ 0, track_m > 0 and interval_s > 0 are needed".into(),
                     ));
                 }
             }

@@ -12,7 +12,7 @@
 use nalgebra::Matrix3;
 use rfloc_ekfslam::{
     BeaconObservation, DelayedInit, EkfSlam, EkfSlamConfig, ObservationOutcome, OdometryNoise,
-    PathLoss, WaypointController, WaypointControllerConfig,
+    PathLoss, WaypointController, WaypointControllerConfig, WheelSlipNoise,
 };
 use rfloc_pose::{Pose2, PoseEstimate};
 
@@ -62,6 +62,8 @@ pub struct EkfSlamPipeline {
     ekf: EkfSlam,
     controller: Option<WaypointController>,
     measurement: Measurement,
+    /// Odometry noise as wheel slip (else the filter's configured `OdometryNoise`).
+    wheel_slip: Option<WheelSlipNoise>,
     bearing_floor_rad2: f64,
     sweep_every_s: f64,
     sweep_timeout_s: f64,
@@ -120,6 +122,11 @@ impl EkfSlamPipeline {
             ekf,
             controller,
             measurement,
+            wheel_slip: s.wheel_slip.map(|w| WheelSlipNoise {
+                relative_sigma: w.relative_sigma,
+                track_m: w.track_m,
+                interval_s: w.interval_s,
+            }),
             bearing_floor_rad2: floor * floor,
             sweep_every_s: s.sweep_every_s,
             sweep_timeout_s: s.sweep_timeout_s,
@@ -164,7 +171,13 @@ impl EkfSlamPipeline {
         };
         let dt = (t - t0).max(0.0);
         let delta = pose.relative_to(&p0);
-        if let Err(e) = self.ekf.predict_odometry(delta) {
+        let predicted = match &self.wheel_slip {
+            Some(model) => self
+                .ekf
+                .predict_odometry_with_covariance(delta, model.increment_covariance(&delta, dt)),
+            None => self.ekf.predict_odometry(delta),
+        };
+        if let Err(e) = predicted {
             self.counters.prediction_errors += 1;
             tracing::warn!(error = %e, count = self.counters.prediction_errors, "odometry increment not used");
         }
