@@ -324,6 +324,31 @@ pub struct WheelSlipSettings {
 fn default_odometry_rot_per_m() -> f64 {
     0.01
 }
+impl Default for EkfSlamSettings {
+    fn default() -> Self {
+        Self {
+            p_ref_dbm: default_p_ref(),
+            path_loss_exponent: default_eta(),
+            measurement: default_measurement(),
+            sweep_step_deg: default_step(),
+            waypoints: Vec::new(),
+            start: [0.0; 3],
+            sweep_every_s: default_sweep_every(),
+            sweep_timeout_s: default_sweep_timeout(),
+            range_sigma_m: default_range_sigma(),
+            rssi_sigma_db: default_rssi_sigma(),
+            bearing_floor_deg: default_bearing_floor(),
+            beacon_init_max_std_m: default_beacon_init_std(),
+            waypoint_switch_m: default_waypoint_switch(),
+            max_speed_mps: default_max_speed(),
+            odometry_trans_per_m: default_odometry_trans(),
+            odometry_rot_per_rad: default_odometry_rot(),
+            odometry_rot_per_m: default_odometry_rot_per_m(),
+            wheel_slip: None,
+        }
+    }
+}
+
 fn default_sweep_every() -> f64 {
     3.0
 }

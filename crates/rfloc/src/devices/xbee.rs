@@ -142,7 +142,7 @@ impl<T: AsyncRead + AsyncWrite + Unpin + Send> SweepProbe for NdRssiProbe<T> {
 }
 
 /// Per-beacon results of a sweep report that the filter can use.
-fn swept_beacons(report: &rfloc_bearing::SweepReport) -> Vec<SweptBeacon> {
+pub fn swept_beacons(report: &rfloc_bearing::SweepReport) -> Vec<SweptBeacon> {
     report
         .beacons
         .iter()
@@ -239,7 +239,8 @@ pub(super) async fn run(
             continue;
         }
         let Some(antenna) = rotator.take() else {
-            ctx.status(DeviceState::Closed, "antenna rotator lost").await;
+            ctx.status(DeviceState::Closed, "antenna rotator lost")
+                .await;
             return;
         };
         let mut runner = match ScanRunner::new(antenna, NdRssiProbe::new(client), scan) {

@@ -48,13 +48,19 @@ enum Phase {
 }
 
 /// Counters of one pipeline run (logged on every sweep).
-#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Default, Clone, Copy, PartialEq)]
 pub struct EkfSlamCounters {
     pub sweeps: u64,
     pub failed_sweeps: u64,
     pub late_sweeps: u64,
+    /// Beacon observations given to the filter.
+    pub observations: u64,
     pub gate_rejections: u64,
     pub prediction_errors: u64,
+    /// Sum of the normalised innovations squared of applied updates and their degrees of
+    /// freedom (their ratio is 1 for a consistent filter).
+    pub nis_sum: f64,
+    pub nis_dof: u64,
 }
 
 /// The EKF-SLAM pipeline.
@@ -141,21 +147,18 @@ impl EkfSlamPipeline {
     }
 
     /// The filter (map and pose).
-    #[cfg(test)]
     #[must_use]
     pub fn filter(&self) -> &EkfSlam {
         &self.ekf
     }
 
     /// Counters so far.
-    #[cfg(test)]
     #[must_use]
     pub fn counters(&self) -> EkfSlamCounters {
         self.counters
     }
 
     /// True once the last waypoint has been reached.
-    #[cfg(test)]
     #[must_use]
     pub fn is_done(&self) -> bool {
         self.phase == Phase::Done
@@ -170,11 +173,15 @@ impl EkfSlamPipeline {
             return Some(self.ekf.pose_estimate(t));
         };
         let dt = (t - t0).max(0.0);
+        // Driving time since the previous event: a sweep's standstill does not count (a
+        // caller that sends no odometry during a sweep would otherwise see it in one step).
+        let driven = (t - self.last_sweep_end.map_or(t0, |e| e.max(t0))).max(0.0);
         let delta = pose.relative_to(&p0);
         let predicted = match &self.wheel_slip {
-            Some(model) => self
-                .ekf
-                .predict_odometry_with_covariance(delta, model.increment_covariance(&delta, dt)),
+            Some(model) => self.ekf.predict_odometry_with_covariance(
+                delta,
+                model.increment_covariance(&delta, dt.max(driven)),
+            ),
             None => self.ekf.predict_odometry(delta),
         };
         if let Err(e) = predicted {
@@ -193,8 +200,8 @@ impl EkfSlamPipeline {
         let pose_now = self.ekf.pose();
         match (self.phase, self.controller.as_mut()) {
             (Phase::Driving, Some(controller)) => {
-                let cmd = controller.command(&pose_now, dt);
-                self.driven_since_sweep += dt;
+                let cmd = controller.command(&pose_now, driven);
+                self.driven_since_sweep += driven;
                 if cmd.done {
                     tracing::info!(x = pose_now.x, y = pose_now.y, "last waypoint reached");
                     self.phase = Phase::Done;
@@ -296,11 +303,19 @@ impl EkfSlamPipeline {
                 let obs: Vec<BeaconObservation> =
                     beacons.iter().map(|b| self.observation(b)).collect();
                 let outcomes = self.ekf.update(&obs);
-                let rejected = outcomes
-                    .iter()
-                    .filter(|o| matches!(o, ObservationOutcome::Rejected { .. }))
-                    .count() as u64;
+                let mut rejected = 0;
+                for o in &outcomes {
+                    match o {
+                        ObservationOutcome::Rejected { .. } => rejected += 1,
+                        ObservationOutcome::Updated { nis, dof } => {
+                            self.counters.nis_sum += nis;
+                            self.counters.nis_dof += *dof as u64;
+                        }
+                        _ => {}
+                    }
+                }
                 self.counters.sweeps += 1;
+                self.counters.observations += obs.len() as u64;
                 self.counters.gate_rejections += rejected;
                 let p = self.ekf.pose();
                 tracing::info!(
@@ -357,6 +372,11 @@ mod tests {
                 crate::config::EstimatorConfig::Ekfslam(s) => s,
                 other => panic!("{other:?}"),
             };
+        assert_eq!(
+            format!("{s:?}"),
+            format!("{:?}", EkfSlamSettings::default()),
+            "the serde defaults and Default agree"
+        );
         s.waypoints = waypoints;
         s.sweep_every_s = 1.0;
         s

@@ -10,6 +10,7 @@
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+pub use rfloc_ekfslam::wheel_travel;
 use rfloc_pose::Pose2;
 
 /// Relative per-substep wheel travel error.
@@ -25,14 +26,6 @@ pub struct OdometrySlip {
 pub fn arc(ds: f64, dth: f64) -> Pose2 {
     let half = dth / 2.0;
     Pose2::new(ds * half.cos(), ds * half.sin(), dth)
-}
-
-/// Wheel travels (left, right) of an increment, m.
-#[must_use]
-pub fn wheel_travel(delta: &Pose2, track_m: f64) -> (f64, f64) {
-    let d = delta.x.hypot(delta.y).copysign(delta.x);
-    let half = track_m / 2.0;
-    (d - delta.theta * half, d + delta.theta * half)
 }
 
 impl OdometrySlip {
