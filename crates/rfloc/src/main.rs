@@ -82,7 +82,8 @@ enum Command {
         /// Run only this many trials.
         #[arg(long)]
         trials: Option<usize>,
-        /// Simulated seconds per wall second.
+        /// Simulated seconds per wall second, for trials whose emulators run on wall-clock time
+        /// (lock-step trials ignore it).
         #[arg(long, default_value_t = 20.0)]
         time_scale: f64,
     },
