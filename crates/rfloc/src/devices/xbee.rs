@@ -127,6 +127,14 @@ impl<T> NdRssiProbe<T> {
     }
 }
 
+impl<T: AsyncRead + AsyncWrite + Unpin + Send> NdRssiProbe<T> {
+    /// Bytes the XBee codec dropped while resynchronising.
+    #[must_use]
+    pub fn dropped_bytes(&self) -> u64 {
+        self.client.stats().decode.dropped_bytes
+    }
+}
+
 impl<T: AsyncRead + AsyncWrite + Unpin + Send> SweepProbe for NdRssiProbe<T> {
     type Error = XBeeError;
 

@@ -477,7 +477,7 @@ impl Mission {
         self.rec
             .metric("xbee_dropped_bytes", probe.dropped_bytes() as f64);
         self.rec
-            .metric("xbee_rejected_records", probe.rejected_records as f64);
+            .metric("xbee_rejected_records", probe.rejected_records() as f64);
         self.rec
             .metric("gate_rejections", counters.gate_rejections as f64);
         self.rec.metric("mission_time_s", self.t);

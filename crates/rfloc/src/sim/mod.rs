@@ -310,6 +310,21 @@ pub async fn start(
     Ok(runtime)
 }
 
+/// The XBee radios of a simulated world as the coordinator emulator's beacons (16-bit network
+/// addresses 0x1000, 0x1001, … in world order).
+pub(crate) fn xbee_beacons(world: &rfloc_sim::World) -> Vec<Beacon> {
+    world
+        .beacons
+        .iter()
+        .enumerate()
+        .map(|(i, b)| Beacon {
+            address: Address64(b.address),
+            network_address: Address16(0x1000_u16.wrapping_add(u16::try_from(i).unwrap_or(0))),
+            ni: b.ni.clone(),
+        })
+        .collect()
+}
+
 /// The emulated XBee coordinator in its turning reflector: beacons, path loss, shadowing and
 /// the reflector's gain pattern from the simulation's scenario file, the antenna angle from a
 /// simulated stepper that the daemon's XBee task turns.
@@ -355,16 +370,7 @@ fn start_xbee(
         } else {
             ApiMode::Escaped
         };
-        let beacons: Vec<Beacon> = world
-            .beacons
-            .iter()
-            .enumerate()
-            .map(|(i, b)| Beacon {
-                address: Address64(b.address),
-                network_address: Address16(0x1000_u16.wrapping_add(u16::try_from(i).unwrap_or(0))),
-                ni: b.ni.clone(),
-            })
-            .collect();
+        let beacons = xbee_beacons(&world);
         let base = runtime.base.clone();
         let world = world.clone();
         let sensors = Arc::clone(&sensors);

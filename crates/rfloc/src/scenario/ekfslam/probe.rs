@@ -1,5 +1,6 @@
-//! The XBee driver as the bearing scan's RSSI probe: one `ND` round per antenna stop, each
-//! beacon's RSSI taken from the RSSI byte its `ND` record carries, beacon id = 64-bit address.
+//! The daemon's XBee sweep probe ([`crate::devices::NdRssiProbe`]: one `ND` round per antenna
+//! stop, each beacon's RSSI from the RSSI byte of its `ND` record, id = 64-bit address) with the
+//! lock-step trial's clock.
 //!
 //! Simulated time passes during a sweep: the probe spreads the sweep's ticks of the lock-step
 //! Pioneer evenly over its rounds (40 stops and 20 ticks: one tick after every second round),
@@ -12,11 +13,11 @@ use rfloc_bearing::RssiProbe;
 use rfloc_xbee::XBeeError;
 
 use super::lockstep::LockstepBase;
-use super::rig::XBeeLink;
+use super::rig::{XBeeLink, XBeeLinkIo};
 
-/// [`RssiProbe`] over `ND` rounds of an [`XBeeLink`].
+/// [`RssiProbe`] over `ND` rounds of an [`XBeeLink`] that ticks the lock-step base.
 pub struct NdRssiProbe {
-    link: XBeeLink,
+    rounds_probe: crate::devices::NdRssiProbe<XBeeLinkIo>,
     base: Arc<LockstepBase>,
     /// Rounds per sweep and ticks per sweep.
     rounds_per_sweep: u64,
@@ -24,8 +25,6 @@ pub struct NdRssiProbe {
     /// Rounds and ticks of the current sweep so far.
     rounds: u64,
     ticks: u64,
-    /// `ND` records that could not be parsed, summed over rounds.
-    pub rejected_records: u64,
 }
 
 impl NdRssiProbe {
@@ -39,20 +38,25 @@ impl NdRssiProbe {
         ticks_per_sweep: u64,
     ) -> Self {
         Self {
-            link,
+            rounds_probe: crate::devices::NdRssiProbe::new(link),
             base,
             rounds_per_sweep: rounds_per_sweep.max(1),
             ticks_per_sweep,
             rounds: 0,
             ticks: 0,
-            rejected_records: 0,
         }
     }
 
     /// Bytes the XBee codec dropped while resynchronising.
     #[must_use]
     pub fn dropped_bytes(&self) -> u64 {
-        self.link.stats().decode.dropped_bytes
+        self.rounds_probe.dropped_bytes()
+    }
+
+    /// `ND` records that could not be parsed, summed over rounds.
+    #[must_use]
+    pub fn rejected_records(&self) -> u64 {
+        self.rounds_probe.rejected_records
     }
 
     /// Starts counting a new sweep.
@@ -83,19 +87,13 @@ impl RssiProbe for NdRssiProbe {
     type Error = XBeeError;
 
     async fn rssi_all(&mut self) -> Result<Vec<(u64, f64)>, XBeeError> {
-        let round = self.link.discover().await;
+        let round = self.rounds_probe.rssi_all().await;
         self.rounds += 1;
         let due =
             (self.rounds * self.ticks_per_sweep / self.rounds_per_sweep).min(self.ticks_per_sweep);
         self.catch_up(due)
             .await
             .map_err(|e| XBeeError::Io(std::io::Error::other(format!("{e:#}"))))?;
-        let round = round?;
-        self.rejected_records += round.rejected.len() as u64;
-        Ok(round
-            .nodes
-            .iter()
-            .filter_map(|n| n.rssi_dbm().map(|dbm| (n.address.0, dbm)))
-            .collect())
+        round
     }
 }

@@ -21,7 +21,7 @@ use rfloc_sim::{Scenario, SensorSuite};
 use rfloc_stepper::AngleProbe;
 use rfloc_transport::{open, CaptureSink, Recorder, SharedClock, Transport};
 use rfloc_xbee::{
-    Address16, Address64, ApiMode, Beacon, ClientConfig as XBeeClientConfig, CoordinatorEmulator,
+    ApiMode, ClientConfig as XBeeClientConfig, CoordinatorEmulator,
     EmulatorConfig as XBeeEmulatorConfig, NdLayout, NdLayoutHint, RssiFn, XBeeClient,
 };
 use tokio::task::JoinHandle;
@@ -29,8 +29,10 @@ use tokio::task::JoinHandle;
 use super::lockstep::LockstepBase;
 use tokio_serial::SerialStream;
 
+/// The XBee link's byte stream: the pty, recorded.
+pub type XBeeLinkIo = Recorder<Transport>;
 /// The XBee link as the bearing scan uses it.
-pub type XBeeLink = XBeeClient<Recorder<Transport>>;
+pub type XBeeLink = XBeeClient<XBeeLinkIo>;
 
 /// Second header note of every capture: which clock the timestamps are on.
 const EMULATOR_TIME_NOTE: &str = "timestamps: simulated seconds of the Pioneer emulator";
@@ -118,17 +120,7 @@ impl Rig {
 
         // XBee coordinator in the reflector.
         let (master, slave, xbee_link) = crate::sim::pty_link(115_200)?;
-        let beacons: Vec<Beacon> = scenario
-            .world
-            .beacons
-            .iter()
-            .enumerate()
-            .map(|(i, b)| Beacon {
-                address: Address64(b.address),
-                network_address: Address16(0x1000_u16.wrapping_add(u16::try_from(i).unwrap_or(0))),
-                ni: b.ni.clone(),
-            })
-            .collect();
+        let beacons = crate::sim::xbee_beacons(&scenario.world);
         let world = scenario.world.clone();
         let truth = robot.clone();
         let rssi: RssiFn = Arc::new(move |index| {
