@@ -1,7 +1,8 @@
 //! Determinism of simulated trials: `rfloc sim` run twice with one seed writes identical
 //! captures (byte for byte: the lock-step emulators and coalesced capture records leave nothing
 //! to timing) and identical truth and estimate files; another seed writes different ones, so
-//! the comparison can fail. Shortened runs of seed 003 case I and seed 002's 3×3 test.
+//! the comparison can fail. Shortened runs of seed 003 case I, seed 002's 3×3 test and seed 001
+//! scenario A (full scenario: both systems reach the emitter within 20 s of simulated time).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::path::{Path, PathBuf};
@@ -130,6 +131,39 @@ fn seed002_3x3_runs_are_identical() {
         &tmp.path().join("o"),
         "seed002-3x3.toml",
         &[("seed = 2002", "seed = 2102")],
+    );
+    let c = sim(&other, &tmp.path().join("c"));
+    assert_captures_differ(&a, &c, &caps);
+}
+
+#[test]
+fn seed001_a_runs_are_identical() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scenario = workspace().join("scenarios/seed001-a.toml");
+    let a = sim(&scenario, &tmp.path().join("a"));
+    let b = sim(&scenario, &tmp.path().join("b"));
+    // The scenario's system (full) and the other one (preliminary), each on its own link.
+    let caps = ["pioneer.cap", "pioneer-preliminary.cap"];
+    let bytes = assert_same(&a, &b, &caps);
+    assert_same(&a, &b, &["truth.csv", "estimate.csv"]);
+    eprintln!(
+        "seed001 A: {} captures identical, {bytes} bytes",
+        caps.len()
+    );
+    // The world file is relative to the scenario: point the copy at the shipped one.
+    let world = format!(
+        "world_file = \"{}\"",
+        workspace()
+            .join("scenarios/worlds/seed001-a.toml")
+            .display()
+    );
+    let other = variant(
+        &tmp.path().join("o"),
+        "seed001-a.toml",
+        &[
+            ("world_file = \"worlds/seed001-a.toml\"", world.as_str()),
+            ("seed = 1001", "seed = 1101"),
+        ],
     );
     let c = sim(&other, &tmp.path().join("c"));
     assert_captures_differ(&a, &c, &caps);

@@ -1,5 +1,6 @@
 //! `rfloc sim` on seed 001 scenario A end to end: the emulated Pioneer over a pty driven by the
-//! emitter-homing pipeline until the robot is within 50 cm of the emitter.
+//! emitter-homing pipeline until the robot is within 50 cm of the emitter. The emulator runs in
+//! lock-step with the trial (simulated time only).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::path::PathBuf;
@@ -14,8 +15,7 @@ fn scenario_a_reaches_the_emitter_and_records_the_pioneer_link() {
     let out = tempfile::tempdir().unwrap();
     let run = Command::new(env!("CARGO_BIN_EXE_rfloc"))
         .current_dir(workspace())
-        .args(["sim", "scenarios/seed001-a.toml", "--trials", "1"])
-        .args(["--time-scale", "10", "-o"])
+        .args(["sim", "scenarios/seed001-a.toml", "--trials", "1", "-o"])
         .arg(out.path())
         .output()
         .unwrap();
@@ -59,4 +59,28 @@ fn scenario_a_reaches_the_emitter_and_records_the_pioneer_link() {
     let rx = cap.lines().filter(|l| l.contains(" rx ")).count();
     assert!(tx > 20 && rx > 50, "tx {tx} rx {rx}");
     assert!(trial.join("pioneer-preliminary.cap").exists());
+
+    // Lock-step: the emulator's clock moves in whole SIP periods, so every record is stamped
+    // with a multiple of 0.1 s, and no SIP is missing between the first and the last.
+    const TICK_NS: u64 = 100_000_000;
+    let capture = rfloc_capture::Capture::from_path(&trial.join("pioneer.cap")).unwrap();
+    for r in &capture.records {
+        let off = r.t_ns % TICK_NS;
+        assert!(off.min(TICK_NS - off) < 1_000, "record at {} s", r.t());
+    }
+    let sips: Vec<u64> = capture
+        .records
+        .iter()
+        .filter(|r| matches!(r.kind, rfloc_capture::RecordKind::Rx(_)) && r.t_ns > 0)
+        .map(|r| r.t_ns)
+        .collect();
+    assert!(sips.len() > 50, "{} SIP records", sips.len());
+    for pair in sips.windows(2) {
+        assert!(
+            pair[1].abs_diff(pair[0]).abs_diff(TICK_NS) < 1_000,
+            "SIPs at {} ns and {} ns",
+            pair[0],
+            pair[1]
+        );
+    }
 }

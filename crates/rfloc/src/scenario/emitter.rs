@@ -2,16 +2,16 @@
 //! 915 MHz antennas, particle filter, occupancy grid, A*).
 //!
 //! What goes over a wire and what does not:
-//! - The **Pioneer base** is the `rfloc-aria` emulator on a pseudo-terminal. The trial opens the
-//!   pty's slave side by path through `rfloc_transport::open`, records the link into
-//!   `pioneer.cap` and drives the robot through the real `AriaClient` (handshake, SIPs,
-//!   VEL/RVEL, keep-alive). The robot's pose belief is the start pose composed with the
-//!   client's odometry; wheel slip is off (see `run`), so
-//!   odometry matches the truth up to the SIP's quantisation (1 mm, 0.09°), also where a wall
-//!   stops the body.
+//! - The **Pioneer base** is the `rfloc-aria` emulator on a pseudo-terminal, in lock-step with
+//!   the trial (`scenario::lockstep`). The trial opens the pty's slave side by path through
+//!   `rfloc_transport::open`, records the link into `pioneer.cap` and drives the robot through
+//!   the real `AriaClient` (handshake, SIPs, VEL/RVEL). The robot's pose belief is the start
+//!   pose composed with the client's odometry; wheel slip is off (see `run`), so odometry
+//!   matches the truth up to the SIP's quantisation (1 mm, 0.09°), also where a wall stops the
+//!   body.
 //! - The **four 915 MHz receivers, the laser range finder and the bumpers** have no wire
 //!   protocol in the seed (nor in rfloc). They are read in-process from `rfloc-sim`'s models
-//!   at the emulator's *true* pose of the SIP period being processed.
+//!   at the emulator's *true* pose after the tick being processed.
 //!
 //! Choices the seed leaves open, made here (constants in `run` and `homing`):
 //! - `A1`/`A2` come from a least-squares calibration against the simulated receivers in an
@@ -26,8 +26,15 @@
 //!   with it (after the emitter reappears from behind a wall).
 //!
 //! Each trial runs the scenario's system (full or preliminary) and then the other one from the
-//! same start, so the report can show both columns of the seed's Table 1. Everything random is
-//! seeded from the trial seed. Times are simulated seconds since the link opened.
+//! same start, so the report can show both columns of the seed's Table 1. Times are simulated
+//! seconds since the first SIP.
+//!
+//! Reproducibility. Every random draw is seeded from the trial seed (the sensors' streams of
+//! `SensorSuite`, the particle filter's generator) and happens in a fixed order at a fixed tick,
+//! and the emulated Pioneer moves only when the trial ticks it, after it has handled every byte
+//! the driver wrote. A run is therefore a function of the scenario and the seed alone: two runs
+//! with one seed write identical captures, truth and estimate files
+//! (`tests/sim_determinism.rs`). `--time-scale` does not apply.
 
 use std::path::Path;
 
@@ -40,7 +47,7 @@ use super::SimOptions;
 mod calibration;
 mod homing;
 mod run;
-mod truth_log;
+mod walls;
 
 use run::{capture_path, run_system, RunOutcome, RunSpec};
 
@@ -74,13 +81,14 @@ pub async fn run_trial(
     dir: &Path,
     opts: &SimOptions,
 ) -> anyhow::Result<TrialRecorder> {
+    // Lock-step emulator: `opts.time_scale` does not apply (see the module documentation).
+    let _ = opts;
     let full = scenario.spec.pipeline != Pipeline::EmitterPreliminary;
     let spec = |use_planner: bool, primary: bool| RunSpec {
         scenario,
         trial,
         use_planner,
         capture: capture_path(dir, primary, use_planner),
-        time_scale: opts.time_scale,
     };
     let main = run_system(&spec(full, true)).await?;
     let other = run_system(&spec(!full, false)).await?;
@@ -122,19 +130,6 @@ pub async fn run_trial(
     rec.metric("astar_plans", main.plans as f64);
     rec.metric("bumper_steps", main.bumper_steps as f64);
     rec.metric("filter_restarts", main.filter_restarts as f64);
-    // Reproducibility: all three are 0 when the run followed its simulated-time schedule.
-    rec.metric(
-        "late_control_steps",
-        (main.late_control_steps + other.late_control_steps) as f64,
-    );
-    rec.metric(
-        "late_commands",
-        (main.late_commands + other.late_commands) as f64,
-    );
-    rec.metric(
-        "gate_timeouts",
-        (main.gate_timeouts + other.gate_timeouts) as f64,
-    );
     let fmt = |o: &RunOutcome| {
         o.reached.map_or_else(
             || format!("not reached in {:.1} s", o.end_time),

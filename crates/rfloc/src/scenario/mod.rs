@@ -15,6 +15,7 @@ use rfloc_sim::{Pipeline as ScenarioPipeline, Report, Scenario, Summary};
 mod ekfslam;
 mod emitter;
 mod hfinit;
+mod lockstep;
 mod snapshot;
 
 /// Options of a simulated run.

@@ -12,8 +12,8 @@ use std::sync::Arc;
 use rfloc_bearing::RssiProbe;
 use rfloc_xbee::XBeeError;
 
-use super::lockstep::LockstepBase;
 use super::rig::{XBeeLink, XBeeLinkIo};
+use crate::scenario::lockstep::LockstepBase;
 
 /// [`RssiProbe`] over `ND` rounds of an [`XBeeLink`] that ticks the lock-step base.
 pub struct NdRssiProbe {

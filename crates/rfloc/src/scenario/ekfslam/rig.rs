@@ -3,9 +3,9 @@
 //! drivers (`AriaClient`, `XBeeClient`) on the slave sides, opened by path through
 //! `rfloc_transport::open` and recorded into the trial folder.
 //!
-//! The Pioneer emulator runs in lock-step (see [`super::lockstep`]); the coordinator answers an
-//! `ND` at once (no response spacing), so a whole round happens at the simulated time of its
-//! request: the trial never advances the clock while a round is in flight.
+//! The Pioneer emulator runs in lock-step (see [`crate::scenario::lockstep`]); the coordinator
+//! answers an `ND` at once (no response spacing), so a whole round happens at the simulated time
+//! of its request: the trial never advances the clock while a round is in flight.
 
 use std::path::Path;
 use std::sync::{Arc, Mutex};
@@ -26,7 +26,7 @@ use rfloc_xbee::{
 };
 use tokio::task::JoinHandle;
 
-use super::lockstep::LockstepBase;
+use crate::scenario::lockstep::LockstepBase;
 use tokio_serial::SerialStream;
 
 /// The XBee link's byte stream: the pty, recorded.

@@ -15,12 +15,14 @@
 //!
 //! The captures use the sink's coalescing: reads (writes) at one simulated time are one record,
 //! whatever chunks the pty delivered them in.
+//!
+//! Used by the seed 001 (emitter), seed 002 (hf-init) and seed 003 (ekf-slam) trials.
 
 use std::time::Duration;
 
 use anyhow::Context;
-use rfloc_aria::{AriaClient, EmulatorHandle, EmulatorState, Odometry, StepControl};
-use rfloc_transport::CaptureSink;
+use rfloc_aria::{AriaClient, ClientConfig, EmulatorHandle, EmulatorState, Odometry, StepControl};
+use rfloc_transport::{CaptureSink, SharedClock};
 
 /// How long a tick (barrier, simulation, SIP decoded) may take in wall time before the trial
 /// gives up.
@@ -47,6 +49,21 @@ pub async fn read_all(sink: &CaptureSink, target: u64) -> anyhow::Result<()> {
         sink.rx_bytes()
     );
     Ok(())
+}
+
+/// The Pioneer driver's settings for a lock-step emulator: no keep-alive on wall time (the
+/// trial commands the robot often enough for its watchdog, which runs on simulated time), a
+/// link timeout no step comes near (the trial has its own), timestamps on `clock`.
+#[must_use]
+pub fn driver_config(clock: SharedClock) -> ClientConfig {
+    ClientConfig {
+        pulse_period: Duration::from_secs(24 * 3600),
+        link_timeout: Duration::from_secs(24 * 3600),
+        sync_timeout: Duration::from_secs(5),
+        close_linger: Duration::from_millis(100),
+        clock: Some(clock),
+        ..ClientConfig::default()
+    }
 }
 
 /// The Pioneer driver and the lock-step emulator behind it.
