@@ -4,6 +4,7 @@
 
 pub mod action;
 pub mod cluster;
+pub mod cycle;
 pub mod distance;
 pub mod error;
 pub mod explore;
@@ -14,6 +15,7 @@ pub mod value_iteration;
 
 pub use action::{integrate, Action, ActionTable, MotionCommand};
 pub use cluster::{ClusterCount, Clustering, ClusteringMethod};
+pub use cycle::CycleBreaker;
 pub use distance::{DissimilarityMatrix, SnapshotDistance};
 pub use error::SnapshotError;
 pub use explore::{ExplorationConfig, ExplorationInput, ExplorationPolicy};
@@ -24,11 +26,15 @@ pub use value_iteration::{q_values, value_iteration, ValueIterationConfig, Value
 
 pub mod database;
 pub mod filter;
+pub mod lattice;
 pub mod navigate;
 pub mod store;
+pub mod track;
 
 pub use database::{
     LearnConfig, LearnedState, Localisation, Observation, SnapshotDatabase, FORMAT_VERSION,
 };
 pub use filter::{FilterConfig, StateFilter};
+pub use lattice::{ActionModel, LatticeConfig, LatticePlan};
 pub use navigate::{NavCommand, NavReason, Navigator, NavigatorConfig, Plan, PlanConfig};
+pub use track::{FingerprintMap, TrackConfig, TrackEstimate, TrackFilter};

@@ -69,8 +69,17 @@ fn seed000_reduced_trial_learns_localises_and_records() {
         "{}",
         db.states.len()
     );
-    rfloc_snapshot::SnapshotDatabase::load(&trial.join("snapshot-db-plan.json")).unwrap();
     rfloc_snapshot::SnapshotDatabase::load(&trial.join("snapshot-db-odometry.json")).unwrap();
+    // The trial's row of the Table 4.9 comparison sits next to the seed's row.
+    let table = std::fs::read_to_string(results.join("table-4.9.md")).unwrap();
+    let row = table.lines().find(|l| l.starts_with("| 1 |")).unwrap();
+    assert!(row.contains(r"\| 0.263"), "{row}");
+    // Every navigation decision is logged, by the plan or the cycle breaker.
+    let nav = std::fs::read_to_string(trial.join("navigation.csv")).unwrap();
+    assert!(nav
+        .lines()
+        .skip(1)
+        .all(|l| l.ends_with(",plan") || l.ends_with(",cycle escape") || l.ends_with(",no fix")));
 
     let value = |name: &str| -> f64 {
         let row = stdout
@@ -80,7 +89,14 @@ fn seed000_reduced_trial_learns_localises_and_records() {
         row.split('|').nth(2).unwrap().trim().parse().unwrap()
     };
     // The seed's metrics are in the table with rfloc's values.
-    for m in ["rmse_m", "max_error_m", "failures", "limit_cycle_rate"] {
+    for m in [
+        "rmse_m",
+        "max_error_m",
+        "failures",
+        "limit_cycle_rate",
+        "limit_cycles",
+        "histogram_filter_mean_error_m",
+    ] {
         assert!(value(m).is_finite(), "{m}");
     }
     // A loose bound: 300 snapshots are under a third of the seed's learning data, and the

@@ -54,24 +54,21 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rfloc_pose::Pose2;
 use rfloc_sim::recorder::TrialRecorder;
-use rfloc_sim::{Point, Scenario};
+use rfloc_sim::Scenario;
 use rfloc_snapshot::{
-    Action, ActionTable, ClusterCount, ClusteringMethod, ExplorationConfig, ExplorationInput,
-    ExplorationPolicy, FilterConfig, LearnConfig, NavCommand, NavReason, Navigator,
-    NavigatorConfig, Observation, PlanConfig, Snapshot, SnapshotDatabase, StateFilter, TagId,
-    TransitionPrior,
+    Action, ActionModel, ActionTable, CycleBreaker, ExplorationConfig, ExplorationInput,
+    ExplorationPolicy, FilterConfig, FingerprintMap, LatticeConfig, LatticePlan, LearnConfig,
+    Observation, Snapshot, SnapshotDatabase, StateFilter, TagId, TrackConfig, TrackFilter,
 };
 
 use super::SimOptions;
 
 mod actuation;
-mod goal;
 mod reflex;
 mod rig;
 mod stall;
 
 use actuation::Actuation;
-use goal::GoalRegion;
 use reflex::StallReflex;
 use rig::{RigSpec, SnapshotRig};
 use stall::StallDetector;
@@ -88,15 +85,155 @@ pub const STALL_GAIN_M: f64 = 0.1;
 pub const WHEEL_SLIP: f64 = 0.02;
 /// Rotation steps taken after a wheel stall (about 160° with Table 4's rotations).
 pub const STALL_TURN_STEPS: usize = 18;
-/// States of the planning database as a fraction of the exploration snapshots (k-medoids).
-pub const NAV_STATE_FRACTION: f64 = 0.25;
-/// Navigator history window and the revisits of one state within it that count as a cycle.
-pub const NAV_WINDOW: usize = 24;
-pub const NAV_MAX_VISITS: usize = 10;
+/// The robot stops when its estimate is within this fraction of the goal tolerance of the goal.
+pub const GOAL_FRACTION: f64 = 0.5;
+/// ... and the particle cloud's spread is at most this (m) ...
+pub const STOP_SPREAD_M: f64 = 0.2;
+/// ... with at least this fraction of the weight in the estimate's mode ...
+pub const STOP_MASS: f64 = 0.9;
+/// ... without the estimate jumping by more than this (m) from one step to the next ...
+pub const STOP_JUMP_M: f64 = 0.4;
+/// ... for this many consecutive steps.
+pub const STOP_CONFIDENT_STEPS: usize = 3;
+/// Decisions remembered by the limit-cycle breaker, and visits of one place/heading in them
+/// that count as a cycle.
+pub const CYCLE_WINDOW: usize = 16;
+pub const CYCLE_REPEATS: usize = 4;
+/// Rotation steps after a wheel stall during navigation (the plan already keeps off the walls).
+pub const NAV_STALL_TURN_STEPS: usize = 6;
 /// Likelihood temperatures compared by replaying each trial's navigation sequence.
 pub const REPLAY_TAUS: [f64; 5] = [0.03, 0.06, 0.12, 0.25, 0.5];
 /// The snapshot trials run at least this many simulated seconds per wall second.
 pub const MIN_TIME_SCALE: f64 = 100.0;
+
+/// Seed 000 Table 4.9, per trial: max and RMS localisation error (m), initial and max distance
+/// to the goal (m), steps to the goal, comment.
+const SEED_TABLE_4_9: [(f64, f64, f64, f64, u32, &str); 20] = [
+    (0.263108, 0.113088, 1.451262, 1.451262, 28, ""),
+    (1.373005, 0.408296, 2.017578, 2.017578, 44, ""),
+    (0.277988, 0.115034, 2.612348, 2.613312, 45, ""),
+    (0.266809, 0.127836, 1.618905, 1.618905, 21, ""),
+    (1.209967, 0.339866, 1.158275, 1.158275, 20, ""),
+    (2.573254, 0.962738, 5.180108, 5.184237, 85, ""),
+    (1.209967, 0.339866, 1.158275, 1.158275, 20, ""),
+    (0.770608, 0.289507, 2.255162, 2.255162, 77, ""),
+    (0.396196, 0.175624, 2.562783, 2.562783, 30, ""),
+    (0.84493, 0.253016, 2.035301, 2.035301, 182, "circling"),
+    (2.651533, 0.997474, 2.890733, 3.259291, 43, ""),
+    (0.564744, 0.213986, 3.679879, 3.701556, 57, ""),
+    (0.318143, 0.180671, 1.854034, 1.856366, 37, ""),
+    (0.948004, 0.246589, 3.370003, 3.370003, 89, ""),
+    (1.656564, 0.412161, 5.620122, 5.620122, 71, ""),
+    (0.832765, 0.18374, 4.616417, 4.616417, 51, ""),
+    (3.670778, 0.858748, 6.051785, 6.775494, 488, "limit cycling"),
+    (0.355889, 0.167153, 1.706876, 1.935891, 48, ""),
+    (0.407162, 0.143514, 2.070111, 2.170551, 41, ""),
+    (0.663023, 0.229172, 2.984635, 2.984635, 114, ""),
+];
+
+/// One trial's row of the Table 4.9 comparison.
+struct TableRow {
+    trial: usize,
+    max_error: f64,
+    rms_error: f64,
+    initial_distance: f64,
+    max_distance: f64,
+    steps: usize,
+    reached: bool,
+    limit_cycles: usize,
+    cycles_broken: usize,
+    wall_stalls: u32,
+}
+
+/// Appends the trial's row, with the seed's row of the same number, to `table-4.9.md` in the
+/// output folder (the first trial starts the file).
+fn write_table_row(out: &Path, row: &TableRow) -> anyhow::Result<()> {
+    use std::io::Write;
+    let path = out.join("table-4.9.md");
+    let mut text = String::new();
+    if row.trial == 0 {
+        text.push_str(
+            "# Seed 000 Table 4.9, trial by trial: rfloc | seed\n\n\
+             Steps are navigation steps. Limit cycles: stretches of 60 steps without 0.1 m of true \
+             progress (referee); broken: repeats detected by the robot.\n\n\
+             | # | max loc error (m) | RMS loc error (m) | initial distance (m) | max distance (m) | steps | goal | limit cycles | broken | wall stalls |\n\
+             |---|---|---|---|---|---|---|---|---|---|\n",
+        );
+    }
+    let seed = SEED_TABLE_4_9.get(row.trial);
+    let pair = |ours: String, theirs: Option<String>| match theirs {
+        Some(t) => format!("{ours} \\| {t}"),
+        None => ours,
+    };
+    text.push_str(&format!(
+        "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+        row.trial + 1,
+        pair(
+            format!("{:.3}", row.max_error),
+            seed.map(|s| format!("{:.3}", s.0))
+        ),
+        pair(
+            format!("{:.3}", row.rms_error),
+            seed.map(|s| format!("{:.3}", s.1))
+        ),
+        pair(
+            format!("{:.2}", row.initial_distance),
+            seed.map(|s| format!("{:.2}", s.2))
+        ),
+        pair(
+            format!("{:.2}", row.max_distance),
+            seed.map(|s| format!("{:.2}", s.3))
+        ),
+        pair(row.steps.to_string(), seed.map(|s| s.4.to_string())),
+        pair(
+            (if row.reached { "reached" } else { "missed" }).to_string(),
+            seed.map(|s| if s.5.is_empty() {
+                "reached".to_string()
+            } else {
+                s.5.to_string()
+            }),
+        ),
+        row.limit_cycles,
+        row.cycles_broken,
+        row.wall_stalls,
+    ));
+    let mut f = std::fs::OpenOptions::new()
+        .create(true)
+        .append(row.trial != 0)
+        .write(true)
+        .truncate(row.trial == 0)
+        .open(&path)
+        .with_context(|| format!("opening {}", path.display()))?;
+    f.write_all(text.as_bytes())
+        .with_context(|| format!("writing {}", path.display()))
+}
+
+/// Track-filter settings compared by replaying each trial's navigation sequence.
+fn track_variants() -> Vec<(&'static str, TrackConfig)> {
+    let d = TrackConfig::default();
+    vec![
+        ("default", d),
+        ("tau_0.05", TrackConfig { tau: 0.05, ..d }),
+        ("tau_0.2", TrackConfig { tau: 0.2, ..d }),
+        ("floor_0.02", TrackConfig { floor: 0.02, ..d }),
+        ("floor_0.3", TrackConfig { floor: 0.3, ..d }),
+        (
+            "reset_0.02",
+            TrackConfig {
+                reset_fraction: 0.02,
+                ..d
+            },
+        ),
+        ("sigma_0.3", TrackConfig { sigma_xy: 0.3, ..d }),
+        (
+            "k_100",
+            TrackConfig {
+                neighbours: 100,
+                ..d
+            },
+        ),
+    ]
+}
 
 /// Planar distance of two poses.
 fn dist(a: &Pose2, b: &Pose2) -> f64 {
@@ -165,6 +302,27 @@ fn replay_mean_error(
         #[allow(clippy::cast_precision_loss)]
         let est = filter.estimate(db, i as f64);
         errors.push(dist(&est.pose, truth));
+    }
+    errors.mean()
+}
+
+/// Mean position error of a track filter with `config` run again over the navigation
+/// sequence (same odometry increments and snapshots).
+fn replay_track_error(
+    map: &FingerprintMap,
+    config: TrackConfig,
+    sequence: &[(Pose2, Snapshot, Pose2)],
+    seed: u64,
+) -> Option<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut filter = TrackFilter::new(config);
+    let mut errors = Errors::default();
+    for (delta, snapshot, truth) in sequence {
+        filter.predict(delta, &mut rng);
+        filter.update(map, snapshot, &mut rng);
+        if let Some(e) = filter.estimate() {
+            errors.push(dist(&e.pose, truth));
+        }
     }
     errors.mean()
 }
@@ -246,6 +404,9 @@ pub async fn run_trial(
     let mut known: std::collections::BTreeSet<TagId> = std::collections::BTreeSet::new();
     let mut by_truth: Vec<Observation> = Vec::with_capacity(explore_steps);
     let mut odom_poses: Vec<Pose2> = Vec::with_capacity(explore_steps);
+    // Odometry poses where the wheels stalled (the bumper/stall bits: a wall is there).
+    let mut stall_poses: Vec<Pose2> = Vec::new();
+    let mut stalled_steps: Vec<bool> = Vec::with_capacity(explore_steps);
     for step in 0..explore_steps {
         let snapshot = rig.read_snapshot().await?;
         let new_tags = snapshot
@@ -269,6 +430,10 @@ pub async fn run_trial(
         if let Some(a) = action {
             let cmd = act.drive_command(act.noisy(a, &mut rng));
             let stalled = rig.drive(cmd, DRIVE_DURATION_S).await?;
+            if stalled {
+                stall_poses.push(rig.odometry_pose());
+            }
+            stalled_steps.push(stalled);
             reflex.after_action(stalled, &mut rng);
         }
     }
@@ -305,130 +470,143 @@ pub async fn run_trial(
         .save(&dir.join("snapshot-db-odometry.json"))
         .context("saving the odometry database")?;
 
-    // The coarse database the navigation plans on (more transitions per state and action).
-    let nav_config = LearnConfig {
-        clustering: ClusteringMethod::KMedoids {
-            k: ClusterCount::Fraction(NAV_STATE_FRACTION),
-            max_iter: 100,
-            seed: 1,
-        },
-        // Unobserved (state, action) rows stay put instead of spreading uniformly, so the plan
-        // never prefers an untried action for a chance of jumping to the goal.
-        prior: TransitionPrior {
-            alpha: 1.0,
-            self_fraction: 1.0,
-        },
-        ..LearnConfig::default()
-    };
-    let (_, nav_db) = learn_blocking(by_truth, nav_config)
-        .await
-        .context("learning (plan)")?;
-    nav_db
-        .save(&dir.join("snapshot-db-plan.json"))
-        .context("saving the planning database")?;
+    // The fine localisation map: every exploration snapshot at the robot's odometry pose.
+    let fingerprints = FingerprintMap::new(
+        by_truth
+            .iter()
+            .zip(&odom_poses)
+            .map(|(o, p)| (&o.snapshot, *p)),
+        config.distance,
+    );
+    // The learned motion of each action: mean odometry increment of the steps that did not stall.
+    let fallback = Action::ALL.map(|a| {
+        let n = act.table.nominal(a);
+        rfloc_snapshot::integrate(&Pose2::default(), n, act.action_duration_s)
+    });
+    let action_model = ActionModel::learn(
+        odom_poses
+            .windows(2)
+            .zip(&by_truth)
+            .zip(&stalled_steps)
+            .filter(|(_, stalled)| !**stalled)
+            .filter_map(|((w, o), _)| match (w.first(), o.action, w.get(1)) {
+                (Some(a), Some(act), Some(b)) => Some((a, act, b)),
+                _ => None,
+            }),
+        &fallback,
+    );
+    let lattice_config = LatticeConfig::default();
+    let (lattice_model, lattice_poses, lattice_stalls) =
+        (action_model, odom_poses.clone(), stall_poses.clone());
+    let goal_radius = GOAL_FRACTION * tolerance;
+    let lattice = tokio::task::spawn_blocking(move || {
+        LatticePlan::solve(
+            lattice_model,
+            &lattice_poses,
+            &lattice_stalls,
+            (goal.x, goal.y),
+            goal_radius,
+            lattice_config,
+        )
+    })
+    .await
+    .map_err(|e| anyhow::anyhow!("planning task failed: {e}"))?;
 
     // 3. Navigation.
-    let region = GoalRegion::around(&nav_db, &goal, tolerance)
-        .context("the planning database has no states")?;
-    let goal_state = region.goal;
-    let plan = region
-        .plan(&nav_db, &PlanConfig::default())
-        .context("planning")?;
-    let mut nav_filter = StateFilter::new(&nav_db, FilterConfig::default());
-    // A coarse state spans several steps (and a rotation of several steps), so staying in it
-    // is not yet a cycle: the revisit rule counts over a longer window.
-    let mut navigator = Navigator::new(NavigatorConfig {
-        window: NAV_WINDOW,
-        max_visits: NAV_MAX_VISITS,
-        ..NavigatorConfig::default()
-    });
+    let mut track = TrackFilter::new(TrackConfig::default());
+    let mut cycles = CycleBreaker::new(CYCLE_WINDOW, CYCLE_REPEATS);
+    let mut nav_reflex = StallReflex::new(NAV_STALL_TURN_STEPS);
     let mut filter = StateFilter::new(&db, FilterConfig::default());
     let mut odom_filter = StateFilter::new(&odom_db, FilterConfig::default());
     let mut stalls = StallDetector::new(STALL_WINDOW, STALL_GAIN_M);
-    let (mut filter_err, mut nearest_err, mut odom_err) =
-        (Errors::default(), Errors::default(), Errors::default());
+    let (mut track_err, mut filter_err, mut nearest_err, mut odom_err) = (
+        Errors::default(),
+        Errors::default(),
+        Errors::default(),
+        Errors::default(),
+    );
     let goal_pose = Pose2::new(goal.x, goal.y, 0.0);
     let mut prev: Option<Action> = None;
     let mut declared = None::<&'static str>;
-    let (mut escapes, mut reversals, mut turnarounds) = (0u32, 0u32, 0u32);
     let mut steps_taken = 0usize;
-    let mut ambiguous_goal = 0u32;
-    let mut nav_log = String::from(
-        "step,x,y,theta,est_x,est_y,plan_state,state_x,state_y,state_theta,action,reason\n",
-    );
+    let mut nav_stalls = 0u32;
+    let mut nav_log =
+        String::from("step,x,y,theta,est_x,est_y,est_theta,spread,mass,action,reason\n");
     let mut replay: Vec<(Option<Action>, Snapshot, Pose2)> = Vec::new();
+    let mut track_replay: Vec<(Pose2, Snapshot, Pose2)> = Vec::new();
     let start_distance = dist(&rig.truth(), &goal_pose);
+    let mut max_goal_distance = start_distance;
+    let mut last_odom = rig.odometry_pose();
+    let mut confident_steps = 0usize;
+    let mut last_est: Option<Pose2> = None;
     for step in 0..=nav_steps {
         let snapshot: Snapshot = rig.read_snapshot().await?;
+        let odom = rig.odometry_pose();
+        let delta = odom.relative_to(&last_odom);
+        track.predict(&delta, &mut rng);
+        last_odom = odom;
+        track.update(&fingerprints, &snapshot, &mut rng);
         if let Some(a) = prev {
             filter.predict(&db, a);
             odom_filter.predict(&odom_db, a);
-            nav_filter.predict(&nav_db, a);
         }
-        nav_filter.update(&nav_db, &snapshot);
         filter.update(&db, &snapshot);
         odom_filter.update(&odom_db, &snapshot);
         let t = step as f64;
-        let est = filter.estimate(&db, t);
+        let hist = filter.estimate(&db, t);
+        let tracked = track.estimate();
+        let est = tracked.map_or(hist.pose, |e| e.pose);
         let truth = rig.truth();
         rec.truth(t, truth);
-        rec.estimate(t, est.pose);
-        filter_err.push(dist(&est.pose, &truth));
+        rec.estimate(t, est);
+        track_err.push(dist(&est, &truth));
+        filter_err.push(dist(&hist.pose, &truth));
         odom_err.push(dist(&odom_filter.estimate(&odom_db, t).pose, &truth));
         if let Some(s) = db.states.get(db.localise(&snapshot).state) {
             nearest_err.push(dist(&s.pose, &truth));
         }
         stalls.push(dist(&truth, &goal_pose));
+        max_goal_distance = max_goal_distance.max(dist(&truth, &goal_pose));
         replay.push((prev, snapshot.clone(), truth));
+        track_replay.push((delta, snapshot.clone(), truth));
         steps_taken = step;
-        if dist(&est.pose, &goal_pose) <= 0.5 * tolerance {
+        // Confident: a tight cloud that did not jump since the last step (a step moves ≤ 0.3 m).
+        let steady = last_est.is_some_and(|p: Pose2| dist(&p, &est) <= STOP_JUMP_M);
+        last_est = tracked.map(|e| e.pose);
+        let confident =
+            steady && tracked.is_some_and(|e| e.spread <= STOP_SPREAD_M && e.mass >= STOP_MASS);
+        confident_steps = if confident { confident_steps + 1 } else { 0 };
+        if confident_steps >= STOP_CONFIDENT_STEPS && dist(&est, &goal_pose) <= goal_radius {
             declared = Some("estimate");
             break;
         }
         if step == nav_steps {
             break;
         }
-        let state = region.planning_state(nav_filter.map_state());
-        match navigator.decide(&plan, state, Some(nav_db.no_tags_state()), &mut rng) {
-            NavCommand::Arrived if dist(&est.pose, &goal_pose) <= tolerance => {
-                declared = Some("goal state");
-                break;
+        let (action, reason) = match tracked {
+            Some(e) => {
+                let ranked = lattice.ranked(&e.pose);
+                cycles.choose(&e.pose, &ranked)
             }
-            command => {
-                // In the goal state while the position estimate disagrees: the state is
-                // ambiguous, so move on (an exploration step) and localise again.
-                let (action, reason) = match command {
-                    NavCommand::Act { action, reason } => (action, reason),
-                    NavCommand::Arrived => {
-                        ambiguous_goal += 1;
-                        let input = ExplorationInput {
-                            tags_seen: snapshot.len(),
-                            new_tags: 0,
-                        };
-                        (explorer.step(input, &mut rng), NavReason::Explore)
-                    }
+            None => {
+                let input = ExplorationInput {
+                    tags_seen: snapshot.len(),
+                    new_tags: 0,
                 };
-                let action = reflex.override_action(action);
-                let map_pose = nav_db
-                    .states
-                    .get(nav_filter.map_state())
-                    .map_or(Pose2::default(), |s| s.pose);
-                nav_log.push_str(&format!(
-                    "{step},{:.3},{:.3},{:.3},{:.3},{:.3},{state},{:.3},{:.3},{:.3},{action:?},{reason:?}\n",
-                    truth.x, truth.y, truth.theta, est.pose.x, est.pose.y, map_pose.x, map_pose.y, map_pose.theta
-                ));
-                match reason {
-                    NavReason::CycleEscape | NavReason::Explore => escapes += 1,
-                    NavReason::AvoidReversal => reversals += 1,
-                    NavReason::TurnAround => turnarounds += 1,
-                    NavReason::Policy => {}
-                }
-                let cmd = act.drive_command(act.noisy(action, &mut rng));
-                let stalled = rig.drive(cmd, DRIVE_DURATION_S).await?;
-                reflex.after_action(stalled, &mut rng);
-                prev = Some(action);
+                (explorer.step(input, &mut rng), "no fix")
             }
-        }
+        };
+        let action = nav_reflex.override_action(action);
+        let (spread, mass) = tracked.map_or((f64::NAN, 0.0), |e| (e.spread, e.mass));
+        nav_log.push_str(&format!(
+            "{step},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{spread:.3},{mass:.3},{action:?},{reason}\n",
+            truth.x, truth.y, truth.theta, est.x, est.y, est.theta
+        ));
+        let cmd = act.drive_command(act.noisy(action, &mut rng));
+        let stalled = rig.drive(cmd, DRIVE_DURATION_S).await?;
+        nav_stalls += u32::from(stalled);
+        nav_reflex.after_action(stalled, &mut rng);
+        prev = Some(action);
     }
     let final_truth = rig.truth();
     let sim_time = rig.sim_time();
@@ -437,13 +615,6 @@ pub async fn run_trial(
 
     let reached = declared.is_some() && dist(&final_truth, &goal_pose) <= tolerance;
     rec.set_success(reached);
-    rec.marks.push((
-        "goal state".into(),
-        nav_db
-            .states
-            .get(goal_state)
-            .map_or(goal, |s| Point::new(s.pose.x, s.pose.y)),
-    ));
     let flag = |b: bool| if b { 1.0 } else { 0.0 };
     rec.metric("limit_cycle_rate", flag(stalls.stalls() > 0));
     rec.metric("stopped_by_robot_rate", flag(declared.is_some()));
@@ -455,8 +626,13 @@ pub async fn run_trial(
         rec.metric("nearest_state_rmse_m", r);
         rec.metric("nearest_state_max_error_m", nearest_err.max);
     }
-    if let Some(m) = filter_err.mean() {
-        rec.metric("filter_mean_error_check_m", m);
+    if let Some(m) = track_err.mean() {
+        rec.metric("track_mean_error_check_m", m);
+    }
+    if let (Some(m), Some(r)) = (filter_err.mean(), filter_err.rms()) {
+        rec.metric("histogram_filter_mean_error_m", m);
+        rec.metric("histogram_filter_rmse_m", r);
+        rec.metric("histogram_filter_max_error_m", filter_err.max);
     }
     if let Some(m) = odom_err.mean() {
         rec.metric("odometry_db_mean_error_m", m);
@@ -472,15 +648,20 @@ pub async fn run_trial(
             rec.metric(&format!("replay_tau_{tau}_mean_error_m"), m);
         }
     }
+    for (name, cfg) in track_variants() {
+        if let Some(m) = replay_track_error(&fingerprints, cfg, &track_replay, seed) {
+            rec.metric(&format!("track_replay_{name}_mean_error_m"), m);
+        }
+    }
     rec.metric("states", db.states.len() as f64);
-    rec.metric("plan_states", nav_db.states.len() as f64);
-    rec.metric("goal_region_states", region.members as f64);
+    rec.metric("fingerprints", fingerprints.len() as f64);
+    rec.metric("lattice_sweeps", lattice.sweeps as f64);
     rec.metric("database_reload_max_difference", reload_diff);
     rec.metric("empty_exploration_snapshots", empty as f64);
-    rec.metric("cycle_escapes", f64::from(escapes));
-    rec.metric("ambiguous_goal_steps", f64::from(ambiguous_goal));
-    rec.metric("reversals_avoided", f64::from(reversals));
-    rec.metric("turn_arounds", f64::from(turnarounds));
+    rec.metric("limit_cycles", stalls.stalls() as f64);
+    rec.metric("cycles_broken", cycles.broken() as f64);
+    rec.metric("navigation_wall_stalls", f64::from(nav_stalls));
+    rec.metric("exploration_stall_places", stall_poses.len() as f64);
     rec.metric("late_stops", counters.late_stops as f64);
     rec.metric("unsettled_stops", counters.unsettled as f64);
     rec.metric("wheel_stall_actions", counters.stalls as f64);
@@ -501,6 +682,23 @@ pub async fn run_trial(
     std::fs::write(dir.join("metrics.csv"), format!("metric,value\n{lines}"))
         .context("writing metrics.csv")?;
     std::fs::write(dir.join("navigation.csv"), nav_log).context("writing navigation.csv")?;
+    if let Some(out) = dir.parent() {
+        write_table_row(
+            out,
+            &TableRow {
+                trial,
+                max_error: track_err.max,
+                rms_error: track_err.rms().unwrap_or(f64::NAN),
+                initial_distance: start_distance,
+                max_distance: max_goal_distance,
+                steps: steps_taken,
+                reached,
+                limit_cycles: stalls.stalls(),
+                cycles_broken: cycles.broken(),
+                wall_stalls: nav_stalls,
+            },
+        )?;
+    }
     tracing::info!(
         trial,
         reached,
