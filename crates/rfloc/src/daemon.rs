@@ -49,6 +49,12 @@ impl DeviceContext {
     /// Opens the device's link, wrapped in a recorder when capturing. The only place the daemon
     /// opens links.
     pub async fn open_link(&self) -> anyhow::Result<Transport> {
+        Ok(self.open_link_recorded().await?.0)
+    }
+
+    /// [`DeviceContext::open_link`], with the capture it records into (for tasks that add
+    /// marks to it).
+    pub async fn open_link_recorded(&self) -> anyhow::Result<(Transport, Option<CaptureSink>)> {
         let link = self
             .device
             .link
@@ -56,7 +62,7 @@ impl DeviceContext {
             .with_context(|| format!("device {:?} has no link", self.device.name))?;
         let io = open(link).await?;
         match &self.capture_dir {
-            None => Ok(io),
+            None => Ok((io, None)),
             Some(dir) => {
                 let device_kind = capture_device_name(&self.device.driver);
                 let mut header = Header::new(device_kind, link.describe());
@@ -68,7 +74,7 @@ impl DeviceContext {
                 ));
                 let path = dir.join(format!("{}.cap", self.device.name));
                 let sink = CaptureSink::create(&path, &header, Arc::clone(&self.clock))?;
-                Ok(Box::new(Recorder::new(io, sink)))
+                Ok((Box::new(Recorder::new(io, sink.clone())), Some(sink)))
             }
         }
     }

@@ -61,7 +61,8 @@ enum Command {
         /// Pipeline to run (default: chosen from the devices in the folder).
         #[arg(long)]
         pipeline: Option<String>,
-        /// Robot configuration supplying pipeline parameters.
+        /// Robot configuration supplying pipeline parameters (default: the folder's
+        /// `robot.toml`, which `rfloc record` writes, when there is one).
         #[arg(short, long)]
         config: Option<PathBuf>,
     },
@@ -197,6 +198,17 @@ fn main() -> ExitCode {
                 Err(code) => return code,
             };
             init_logging(&cfg.log.level, &cfg.log.format);
+            // The robot file goes with the captures: `rfloc replay` runs the pipeline with it.
+            let copied = std::fs::create_dir_all(&out)
+                .and_then(|()| std::fs::copy(&config, out.join("robot.toml")));
+            if let Err(e) = copied {
+                eprintln!(
+                    "rfloc: cannot copy {} into {}: {e}",
+                    config.display(),
+                    out.display()
+                );
+                return ExitCode::from(73);
+            }
             run_async(daemon::run(
                 cfg,
                 daemon::RunOptions {
@@ -212,7 +224,17 @@ fn main() -> ExitCode {
             config,
         } => {
             init_logging("warn", "text");
-            let cfg = match config.map(|c| load_config(&c)).transpose() {
+            // Without -c, the robot file recorded with the session (if any) configures the
+            // pipeline; its devices need not exist here.
+            let session_robot = dir.join("robot.toml");
+            let cfg = match config {
+                Some(c) => load_config(&c).map(Some),
+                None if pipeline.is_none() && session_robot.is_file() => {
+                    load_config_with(&session_robot, false).map(Some)
+                }
+                None => Ok(None),
+            };
+            let cfg = match cfg {
                 Ok(c) => c,
                 Err(code) => return code,
             };

@@ -16,7 +16,13 @@ use rfloc_kts::{KtsClient, KtsConfig};
 use rfloc_transport::replay::{ReplayMode, Replayer};
 use rfloc_transport::SharedClock;
 
-use crate::config::{EstimatorConfig, HfGridSettings, RobotConfig};
+use rfloc_xbee::{
+    ApiMode, AtCommandName, Frame as XBeeFrame, FrameDecoder as XBeeFrameDecoder, NdLayoutHint,
+    Node,
+};
+
+use crate::config::{EkfSlamSettings, EstimatorConfig, HfGridSettings, RobotConfig};
+use crate::devices::{swept_beacons, SweepMark};
 use crate::events::DeviceEvent;
 use crate::message::{pose_json, PoseFormat};
 use crate::pipeline;
@@ -55,9 +61,29 @@ pub async fn replay_lines(
     caps.sort_by(|a, b| a.0.cmp(&b.0));
     anyhow::ensure!(!caps.is_empty(), "no .cap files in {}", dir.display());
 
+    let has = |device: &str| {
+        caps.iter().any(|(_, c)| {
+            c.header
+                .device
+                .as_deref()
+                .is_some_and(|d| d.starts_with(device))
+        })
+    };
+    let estimator = match (pipeline_name, cfg) {
+        (_, Some(c)) => c.estimator.clone(),
+        (Some("odometry"), None) => EstimatorConfig::Odometry,
+        (Some("hfgrid"), None) => EstimatorConfig::Hfgrid(HfGridSettings::default()),
+        (Some("ekfslam"), None) => EstimatorConfig::Ekfslam(EkfSlamSettings::default()),
+        (Some(other), None) => {
+            anyhow::bail!("unknown pipeline {other:?} (odometry, hfgrid, ekfslam)")
+        }
+        (None, None) if has("kts") => EstimatorConfig::Hfgrid(HfGridSettings::default()),
+        (None, None) if has("xbee") => EstimatorConfig::Ekfslam(EkfSlamSettings::default()),
+        (None, None) => EstimatorConfig::Odometry,
+    };
+
     let mut events = Vec::new();
     let mut started = None;
-    let mut kinds = Vec::new();
     for (path, cap) in &caps {
         let name = path
             .file_stem()
@@ -76,13 +102,16 @@ pub async fn replay_lines(
             }
         }
         match device.as_str() {
-            "kts-rfidm1356" => {
-                kinds.push("kts");
-                events.extend(replay_kts(&name, cap.clone()).await?);
-            }
-            "pioneer-aria" => {
-                kinds.push("aria");
-                events.extend(replay_aria(&name, cap.clone()).await?);
+            "kts-rfidm1356" => events.extend(replay_kts(&name, cap.clone()).await?),
+            "pioneer-aria" => events.extend(replay_aria(&name, cap.clone()).await?),
+            "xbee-api1" | "xbee-api2" => {
+                let mode = if device == "xbee-api1" {
+                    ApiMode::Unescaped
+                } else {
+                    ApiMode::Escaped
+                };
+                let scan = pipeline::scan_config(&estimator);
+                events.extend(replay_xbee_sweeps(&name, cap, mode, &scan));
             }
             other => {
                 tracing::warn!(device = other, file = %path.display(), "no replay driver for this device; skipped")
@@ -98,16 +127,6 @@ pub async fn replay_lines(
         text: "end".into(),
     });
 
-    let estimator = match (pipeline_name, cfg) {
-        (_, Some(c)) => c.estimator.clone(),
-        (Some("odometry"), None) => EstimatorConfig::Odometry,
-        (Some("hfgrid"), None) => EstimatorConfig::Hfgrid(HfGridSettings::default()),
-        (Some(other), None) => anyhow::bail!("unknown pipeline {other:?} (odometry, hfgrid)"),
-        (None, None) if kinds.contains(&"kts") => {
-            EstimatorConfig::Hfgrid(HfGridSettings::default())
-        }
-        (None, None) => EstimatorConfig::Odometry,
-    };
     let mut p = pipeline::build(&estimator, cfg.and_then(|c| c.state.dir.as_deref()));
     let fmt = PoseFormat {
         frame_id: cfg.map_or_else(|| "map".into(), |c| c.robot.frame_id.clone()),
@@ -196,6 +215,135 @@ async fn replay_aria(name: &str, cap: Capture) -> anyhow::Result<Vec<DeviceEvent
         );
     }
     Ok(out)
+}
+
+/// One sweep being rebuilt from a radio capture: the heading of its start mark and the
+/// readings of each `ND` round (by frame ID), in request order.
+struct SweepInProgress {
+    heading_rad: f64,
+    rounds: Vec<(u8, Vec<(u64, f64)>)>,
+}
+
+/// Rebuilds the XBee task's sweeps from its capture: the `ND` rounds between a `sweep start`
+/// and a `sweep end` mark, paired in order with the antenna angles of the end mark, estimated
+/// with the pipeline's sweep settings. Each sweep gives a [`DeviceEvent::Sweep`] at its end
+/// mark's time; an abandoned sweep (no angles) gives its failure.
+fn replay_xbee_sweeps(
+    name: &str,
+    cap: &Capture,
+    mode: ApiMode,
+    scan: &rfloc_bearing::ScanConfig,
+) -> Vec<DeviceEvent> {
+    let mut tx = XBeeFrameDecoder::new(mode);
+    let mut rx = XBeeFrameDecoder::new(mode);
+    let mut current: Option<SweepInProgress> = None;
+    let mut out = Vec::new();
+    let mut unusable = 0u64;
+    for rec in &cap.records {
+        match &rec.kind {
+            RecordKind::Event(text) => {
+                let Some(mark) = text.strip_prefix("mark ").and_then(SweepMark::parse) else {
+                    continue;
+                };
+                match mark {
+                    SweepMark::Start { heading_rad } => {
+                        current = Some(SweepInProgress {
+                            heading_rad,
+                            rounds: Vec::new(),
+                        });
+                    }
+                    SweepMark::End { antenna_rad } => {
+                        let Some(sweep) = current.take() else {
+                            unusable += 1;
+                            continue;
+                        };
+                        out.push(DeviceEvent::Sweep {
+                            device: name.to_string(),
+                            t: rec.t(),
+                            result: rebuilt_sweep(&sweep, &antenna_rad, scan),
+                        });
+                    }
+                }
+            }
+            RecordKind::Tx(bytes) => {
+                tx.push(bytes);
+                while let Some(frame) = tx.next_frame() {
+                    if let (Some(sweep), Ok(Ok(XBeeFrame::AtCommand(c)))) =
+                        (current.as_mut(), frame.map(|f| XBeeFrame::parse(&f)))
+                    {
+                        if c.command == AtCommandName::ND {
+                            sweep.rounds.push((c.frame_id, Vec::new()));
+                        }
+                    }
+                }
+            }
+            RecordKind::Rx(bytes) => {
+                rx.push(bytes);
+                while let Some(frame) = rx.next_frame() {
+                    let Ok(Ok(XBeeFrame::AtResponse(r))) = frame.map(|f| XBeeFrame::parse(&f))
+                    else {
+                        continue;
+                    };
+                    if r.command != AtCommandName::ND || r.data.is_empty() {
+                        continue;
+                    }
+                    let Some(sweep) = current.as_mut() else {
+                        continue;
+                    };
+                    let round = sweep
+                        .rounds
+                        .iter_mut()
+                        .rev()
+                        .find(|(id, _)| *id == r.frame_id);
+                    match (round, Node::parse(&r.data, NdLayoutHint::Auto)) {
+                        (Some((_, readings)), Ok(node)) => {
+                            if let Some(dbm) = node.rssi_dbm() {
+                                readings.push((node.address.0, dbm));
+                            }
+                        }
+                        _ => unusable += 1,
+                    }
+                }
+            }
+        }
+    }
+    let dropped = tx.stats().dropped_bytes + rx.stats().dropped_bytes;
+    if unusable > 0 || dropped > 0 {
+        tracing::warn!(
+            unusable,
+            dropped,
+            "radio replay skipped records it could not place in a sweep"
+        );
+    }
+    out
+}
+
+fn rebuilt_sweep(
+    sweep: &SweepInProgress,
+    antenna_rad: &[f64],
+    scan: &rfloc_bearing::ScanConfig,
+) -> Result<Vec<crate::events::SweptBeacon>, String> {
+    if antenna_rad.is_empty() {
+        return Err("sweep abandoned".into());
+    }
+    if antenna_rad.len() != sweep.rounds.len() {
+        tracing::warn!(
+            stops = antenna_rad.len(),
+            rounds = sweep.rounds.len(),
+            "sweep with as many ND rounds as stops expected; pairing the first ones"
+        );
+    }
+    let samples = antenna_rad
+        .iter()
+        .zip(&sweep.rounds)
+        .map(|(a, (_, readings))| rfloc_bearing::SweepSample {
+            antenna_rad: *a,
+            heading_rad: sweep.heading_rad,
+            readings: readings.clone(),
+        })
+        .collect();
+    let report = rfloc_bearing::estimate_sweep(&rfloc_bearing::Sweep { samples }, &scan.estimator);
+    Ok(swept_beacons(&report))
 }
 
 /// Parses `YYYY-MM-DDTHH:MM:SS[.fff]Z`.

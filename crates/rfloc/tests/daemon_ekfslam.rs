@@ -5,6 +5,7 @@
 //! has stood still near the last waypoint for 3 s (pose stamps are simulated seconds) the daemon
 //! is stopped with SIGTERM; the last pose must be near the robot's true pose, which the daemon
 //! logs on exit, and the log must show the four beacons mapped and the last waypoint reached.
+//! Replaying the run's captures must then reproduce the published poses.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
@@ -73,15 +74,22 @@ async fn ekfslam_daemon_maps_beacons_and_drives_the_waypoints() {
     let mut lines = daemon.pose_lines(port).await;
     let mut fixes = 0usize;
     let mut poses = 0usize;
+    let mut live = std::collections::BTreeMap::new();
     // (stamp, x, y) where the pose last moved.
     let mut parked: Option<(f64, f64, f64)> = None;
     let deadline = tokio::time::Instant::now() + Duration::from_secs(120);
     let last = loop {
-        let line = tokio::time::timeout_at(deadline, lines.next_line())
-            .await
-            .expect("the robot never parked at the last waypoint")
-            .unwrap()
-            .expect("pose stream ended");
+        let line = match tokio::time::timeout_at(deadline, lines.next_line()).await {
+            Ok(Ok(Some(line))) => line,
+            _ => {
+                let (_, log) = daemon.terminate_or_collect().await;
+                let tail: Vec<&str> = log.lines().rev().take(40).collect();
+                panic!(
+                    "the robot never parked at the last waypoint; log tail:\n{}",
+                    tail.into_iter().rev().collect::<Vec<_>>().join("\n")
+                );
+            }
+        };
         let v: serde_json::Value = serde_json::from_str(&line).unwrap();
         if v["class"] != "POSE" {
             continue;
@@ -96,6 +104,7 @@ async fn ekfslam_daemon_maps_beacons_and_drives_the_waypoints() {
             v["x"].as_f64().unwrap(),
             v["y"].as_f64().unwrap(),
         );
+        live.insert(stamp_key(&v), (x, y, v["yaw"].as_f64().unwrap()));
         match parked {
             Some((t0, x0, y0)) if (x - x0).hypot(y - y0) < 0.005 => {
                 // Inside the switching distance (0.3 m) the controller is done at once, so a
@@ -141,4 +150,49 @@ async fn ekfslam_daemon_maps_beacons_and_drives_the_waypoints() {
         "{tx_lines} requests for {sweeps} sweeps of 40 stops"
     );
     assert!(dir.path().join("cap/base.cap").exists());
+
+    // Replaying the session's own captures (odometry from the base, sweeps rebuilt from the
+    // radio's ND rounds and sweep marks) gives back the poses the daemon published.
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_rfloc"))
+        .args(["replay", "-c"])
+        .arg(&path)
+        .arg(dir.path().join("cap"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let replayed: std::collections::BTreeMap<i64, (f64, f64, f64)> = String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter(|v| v["class"] == "POSE")
+        .map(|v| {
+            (
+                stamp_key(&v),
+                (
+                    v["x"].as_f64().unwrap(),
+                    v["y"].as_f64().unwrap(),
+                    v["yaw"].as_f64().unwrap(),
+                ),
+            )
+        })
+        .collect();
+    let common: Vec<_> = live.keys().filter(|k| replayed.contains_key(k)).collect();
+    assert!(
+        common.len() * 10 >= live.len() * 9,
+        "{} of {} live poses replayed",
+        common.len(),
+        live.len()
+    );
+    for k in common {
+        assert_eq!(live[k], replayed[k], "pose at stamp {} ms", k);
+    }
+}
+
+/// A pose's stamp in milliseconds (the stream prints microseconds).
+fn stamp_key(v: &serde_json::Value) -> i64 {
+    (v["stamp"].as_f64().unwrap() * 1000.0).round() as i64
 }

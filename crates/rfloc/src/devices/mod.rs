@@ -15,7 +15,7 @@ mod aria;
 mod kts;
 mod xbee;
 
-pub use xbee::{swept_beacons, AntennaSource, NdRssiProbe, SweepRequest, SweepSetup};
+pub use xbee::{swept_beacons, AntennaSource, NdRssiProbe, SweepMark, SweepRequest, SweepSetup};
 
 /// A velocity command for the base: (m/s, rad/s).
 pub type MotionSender = mpsc::Sender<(f64, f64)>;

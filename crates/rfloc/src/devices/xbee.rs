@@ -1,6 +1,11 @@
 //! XBee radio in a turning reflector: on request, one antenna sweep (the stepper turns the
 //! reflector stop by stop, one `ND` round per stop), reported as a [`DeviceEvent::Sweep`].
 //!
+//! Captures: each sweep is framed by two marks in the radio's capture, `mark sweep start
+//! heading_rad=…` and `mark sweep end antenna_rad=a0,a1,…` (the angle reached at each stop, in
+//! the order of the sweep's `ND` requests), so that `rfloc replay` can rebuild the sweeps from
+//! the recorded `ND` rounds.
+//!
 //! The task owns both the radio link and the antenna rotator (the GPIO stepper device of the
 //! robot file, or a simulated one): a sweep needs both, in lock step. A lost radio link is
 //! reopened with back-off; the rotator is kept across reconnections so its step count (the
@@ -11,6 +16,7 @@ use std::time::Duration;
 use rfloc_bearing::{RssiProbe as SweepProbe, ScanConfig, ScanError, ScanRunner};
 use rfloc_stepper::gpio::{open_gpio_stepper, GpioStepperConfig, LineRef};
 use rfloc_stepper::{AntennaRotator, SimulatedStepper, StepperConfig, StepperError, StepperHandle};
+use rfloc_transport::CaptureSink;
 use rfloc_xbee::{ApiMode, ClientConfig, NdLayoutHint, XBeeClient, XBeeError};
 use tokio::io::{AsyncRead, AsyncWrite};
 use tokio::sync::mpsc;
@@ -218,8 +224,8 @@ pub(super) async fn run(
                 }
             }
         }
-        let io = match ctx.open_link().await {
-            Ok(io) => io,
+        let (io, capture) = match ctx.open_link_recorded().await {
+            Ok(opened) => opened,
             Err(e) => {
                 ctx.status(DeviceState::Reconnecting, format!("{e:#}"))
                     .await;
@@ -262,7 +268,7 @@ pub(super) async fn run(
         attempt = 0;
         ctx.status(DeviceState::Connected, "radio and antenna ready")
             .await;
-        let link_lost = serve_sweeps(&ctx, &mut runner, &mut requests).await;
+        let link_lost = serve_sweeps(&ctx, &mut runner, &mut requests, capture.as_ref()).await;
         let (antenna, probe) = runner.into_parts();
         rotator = Some(antenna);
         if probe.rejected_records > 0 {
@@ -295,6 +301,7 @@ async fn serve_sweeps<T: AsyncRead + AsyncWrite + Unpin + Send>(
     ctx: &DeviceContext,
     runner: &mut ScanRunner<Antenna, NdRssiProbe<T>>,
     requests: &mut mpsc::Receiver<SweepRequest>,
+    capture: Option<&CaptureSink>,
 ) -> bool {
     loop {
         let request = tokio::select! {
@@ -305,10 +312,20 @@ async fn serve_sweeps<T: AsyncRead + AsyncWrite + Unpin + Send>(
             },
         };
         let heading = request.heading_rad;
+        if let Some(c) = capture {
+            c.event(&sweep_start_mark(heading));
+        }
         let scanned = tokio::select! {
             () = ctx.stop.cancelled() => return false,
             r = runner.scan(move || heading) => r,
         };
+        if let Some(c) = capture {
+            let angles: Vec<f64> = match &scanned {
+                Ok(r) => r.sweep.samples.iter().map(|s| s.antenna_rad).collect(),
+                Err(_) => Vec::new(),
+            };
+            c.event(&sweep_end_mark(&angles));
+        }
         let t = ctx.clock.now();
         let (result, lost) = match scanned {
             Ok(r) => (Ok(swept_beacons(&r.report)), false),
@@ -332,9 +349,76 @@ async fn serve_sweeps<T: AsyncRead + AsyncWrite + Unpin + Send>(
     }
 }
 
+/// `mark sweep start heading_rad=…` (text after `ev `).
+fn sweep_start_mark(heading_rad: f64) -> String {
+    format!("mark sweep start heading_rad={heading_rad:.6}")
+}
+
+/// `mark sweep end antenna_rad=a0,a1,…`; no angles for an abandoned sweep.
+fn sweep_end_mark(angles: &[f64]) -> String {
+    let list: Vec<String> = angles.iter().map(|a| format!("{a:.6}")).collect();
+    format!("mark sweep end antenna_rad={}", list.join(","))
+}
+
+/// A sweep mark of a capture (the text after `mark `).
+#[derive(Debug, Clone, PartialEq)]
+pub enum SweepMark {
+    Start { heading_rad: f64 },
+    End { antenna_rad: Vec<f64> },
+}
+
+impl SweepMark {
+    /// Parses `sweep start heading_rad=…` / `sweep end antenna_rad=…`; `None` for other marks
+    /// or a malformed number (a damaged capture).
+    #[must_use]
+    pub fn parse(text: &str) -> Option<SweepMark> {
+        if let Some(rest) = text.strip_prefix("sweep start heading_rad=") {
+            return rest
+                .trim()
+                .parse()
+                .ok()
+                .map(|h| SweepMark::Start { heading_rad: h });
+        }
+        let rest = text.strip_prefix("sweep end antenna_rad=")?.trim();
+        if rest.is_empty() {
+            return Some(SweepMark::End {
+                antenna_rad: Vec::new(),
+            });
+        }
+        let angles: Result<Vec<f64>, _> = rest.split(',').map(str::parse::<f64>).collect();
+        angles
+            .ok()
+            .map(|antenna_rad| SweepMark::End { antenna_rad })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sweep_marks_round_trip() {
+        let start = sweep_start_mark(1.25);
+        let end = sweep_end_mark(&[0.0, 0.15708, -3.0]);
+        assert_eq!(
+            SweepMark::parse(start.strip_prefix("mark ").unwrap()),
+            Some(SweepMark::Start { heading_rad: 1.25 })
+        );
+        assert_eq!(
+            SweepMark::parse(end.strip_prefix("mark ").unwrap()),
+            Some(SweepMark::End {
+                antenna_rad: vec![0.0, 0.15708, -3.0]
+            })
+        );
+        assert_eq!(
+            SweepMark::parse("sweep end antenna_rad="),
+            Some(SweepMark::End {
+                antenna_rad: Vec::new()
+            })
+        );
+        assert_eq!(SweepMark::parse("sweep end antenna_rad=1,x"), None);
+        assert_eq!(SweepMark::parse("side 0"), None);
+    }
 
     #[test]
     fn stepper_lines_by_name_or_offset() {

@@ -22,6 +22,10 @@ use crate::pipeline::{Pipeline, Request};
 
 /// Standing still this long (s) lets a pipeline without waypoints sweep.
 pub const PASSIVE_STILL_S: f64 = 1.0;
+/// An odometry increment longer than this (m), or than [`JUMP_SPEED`] × its duration, is a
+/// rebase (the base reconnected and restarted its odometry), not motion.
+const JUMP_M: f64 = 0.5;
+const JUMP_SPEED: f64 = 3.0;
 /// Speeds below these (m/s, rad/s) count as standing still.
 const STILL_V: f64 = 1e-3;
 const STILL_W: f64 = 1e-3;
@@ -57,6 +61,8 @@ pub struct EkfSlamCounters {
     pub observations: u64,
     pub gate_rejections: u64,
     pub prediction_errors: u64,
+    /// Odometry jumps taken as rebases (see [`JUMP_M`]).
+    pub odometry_rebases: u64,
     /// Sum of the normalised innovations squared of applied updates and their degrees of
     /// freedom (their ratio is 1 for a consistent filter).
     pub nis_sum: f64,
@@ -177,6 +183,15 @@ impl EkfSlamPipeline {
         // caller that sends no odometry during a sweep would otherwise see it in one step).
         let driven = (t - self.last_sweep_end.map_or(t0, |e| e.max(t0))).max(0.0);
         let delta = pose.relative_to(&p0);
+        if delta.x.hypot(delta.y) > JUMP_M.max(JUMP_SPEED * dt) {
+            self.counters.odometry_rebases += 1;
+            tracing::warn!(
+                jump_m = delta.x.hypot(delta.y),
+                rebases = self.counters.odometry_rebases,
+                "odometry jumped; taken as a rebase of the base's odometry, not as motion"
+            );
+            return Some(self.ekf.pose_estimate(t));
+        }
         let predicted = match &self.wheel_slip {
             Some(model) => self.ekf.predict_odometry_with_covariance(
                 delta,
@@ -475,7 +490,22 @@ mod tests {
             (0.5, -1.5),
         ];
         let mut t = 0.0;
+        let mut at: (f64, f64) = spots[0];
         for (k, &(x, y)) in spots.iter().enumerate() {
+            // Driven (not teleported) to the spot: 0.1 m per 0.1 s at most.
+            let steps = ((x - at.0).hypot(y - at.1) / 0.1).ceil() as usize;
+            for i in 1..=steps {
+                let f = i as f64 / steps as f64;
+                t += 0.1;
+                p.handle(&odo(
+                    t,
+                    at.0 + f * (x - at.0),
+                    at.1 + f * (y - at.1),
+                    0.0,
+                    1.0,
+                ));
+            }
+            at = (x, y);
             for _ in 0..15 {
                 t += 0.1;
                 p.handle(&odo(t, x, y, 0.0, 0.0));
@@ -494,10 +524,10 @@ mod tests {
             let e = (b.position.x - x).hypot(b.position.y - y);
             assert!(e < 0.05, "beacon {id} off by {e} m");
         }
-        let est = p.handle(&odo(t + 0.1, 0.0, 1.0, 0.0, 0.0)).unwrap();
+        let est = p.handle(&odo(t + 0.1, 0.5, -1.5, 0.0, 0.0)).unwrap();
         assert_eq!(est.mode, EstimateMode::Fix);
         assert!(
-            est.pose.x.abs() < 0.05 && (est.pose.y - 1.0).abs() < 0.05,
+            (est.pose.x - 0.5).abs() < 0.05 && (est.pose.y + 1.5).abs() < 0.05,
             "{:?}",
             est.pose
         );
@@ -529,6 +559,20 @@ mod tests {
         assert!(p.handle(&failed).is_some());
         assert_eq!(p.phase, Phase::Driving);
         assert_eq!(p.counters().failed_sweeps, 2);
+    }
+
+    #[test]
+    fn an_odometry_rebase_does_not_move_the_estimate() {
+        let mut p = EkfSlamPipeline::new(&settings(Vec::new())).unwrap();
+        p.handle(&odo(0.0, 5.0, 3.0, 0.5, 0.0));
+        let before = p.handle(&odo(0.1, 5.01, 3.0, 0.5, 0.1)).unwrap().pose;
+        // The base reconnected: its odometry restarts at zero.
+        let after = p.handle(&odo(0.2, 0.0, 0.0, 0.0, 0.1)).unwrap().pose;
+        assert_eq!(before, after);
+        assert_eq!(p.counters().odometry_rebases, 1);
+        // Motion continues from the new origin.
+        let moved = p.handle(&odo(0.3, 0.02, 0.0, 0.0, 0.1)).unwrap().pose;
+        assert!((moved.distance(&after) - 0.02).abs() < 1e-9);
     }
 
     #[test]

@@ -92,4 +92,13 @@ impl Daemon {
         let log = self.log.take().unwrap().join().unwrap();
         panic!("daemon still running after {limit:?}; log:\n{log}");
     }
+
+    /// Stops the daemon if it still runs (SIGKILL) and returns its exit status and log; for
+    /// reporting a failure whatever state the daemon is in.
+    pub async fn terminate_or_collect(mut self) -> (ExitStatus, String) {
+        let _ = self.child.kill();
+        let status = self.child.wait().unwrap();
+        let log = self.log.take().unwrap().join().unwrap();
+        (status, log)
+    }
 }
