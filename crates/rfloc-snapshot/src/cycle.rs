@@ -3,8 +3,10 @@
 //! The seed's limit cycles (section 4.1) are repeating place/action sequences: the robot comes
 //! back to the same place with the same heading and does the same thing again (rotate left,
 //! rotate right, …; or circling the goal). [`CycleBreaker`] keys each decision by a coarse
-//! place-and-heading cell; when the current key already occurs `repeats` times in the last
-//! `window` decisions, it takes the best-ranked action not yet taken from that key within the
+//! place-and-heading cell; when the robot has come back to the current key `repeats` times
+//! within the last `window` decisions (consecutive decisions at one key count once, so turning
+//! on the spot is not a cycle), or has reversed its rotation or arc `repeats − 1` times without
+//! leaving the key, it takes the best-ranked action not yet taken from that key within the
 //! window (the next-best action when all were), for `escape_steps` decisions.
 
 use std::collections::VecDeque;
@@ -59,8 +61,36 @@ impl CycleBreaker {
     pub fn choose(&mut self, pose: &Pose2, ranked: &[(Action, f64)]) -> (Action, &'static str) {
         let k = key(pose);
         let best = ranked.first().map_or(Action::Forward, |r| r.0);
-        let visits = self.history.iter().filter(|(h, _)| *h == k).count();
-        if visits + 1 >= self.repeats && self.escape_left == 0 {
+        // Returns to this key: maximal runs of it in the window (turning on the spot through a
+        // sector is one visit, not several), counting the current step.
+        let mut runs = 0usize;
+        let mut prev_key = None;
+        for (h, _) in &self.history {
+            if *h == k && prev_key != Some(*h) {
+                runs += 1;
+            }
+            prev_key = Some(*h);
+        }
+        if prev_key != Some(k) {
+            runs += 1;
+        }
+        // Mirror-image reversals (left after right) within the current stay at this key.
+        let stay: Vec<Action> = self
+            .history
+            .iter()
+            .rev()
+            .take_while(|(h, _)| *h == k)
+            .map(|(_, a)| *a)
+            .collect();
+        let reversals = stay
+            .windows(2)
+            .filter(|w| match (w.first(), w.get(1)) {
+                (Some(a), Some(b)) => a.opposite() == Some(*b),
+                _ => false,
+            })
+            .count();
+        let visits = runs.max(reversals + 1);
+        if visits >= self.repeats && self.escape_left == 0 {
             self.escape_left = self.escape_steps;
             self.broken += 1;
             tracing::debug!(?k, visits, "navigation limit cycle detected");
@@ -93,7 +123,7 @@ mod tests {
 
     #[test]
     fn a_left_right_ping_pong_is_broken_with_an_untried_action() {
-        let mut c = CycleBreaker::new(16, 4);
+        let mut c = CycleBreaker::new(16, 3);
         let p = Pose2::new(1.0, 1.0, 0.1);
         let mut out = Vec::new();
         for k in 0..8 {
@@ -115,10 +145,40 @@ mod tests {
         }
         assert_eq!(out[0].0, Action::RotateLeft);
         assert_eq!(out[1].0, Action::RotateRight);
+        // After two reversals without leaving the key the next decision escapes.
+        assert_eq!(out[2].1, "plan");
         assert_eq!(out[3], (Action::Forward, "cycle escape"));
         assert!(c.broken() >= 1);
+        // Turning on the spot in one direction is not a cycle.
+        let mut turning = CycleBreaker::new(16, 3);
+        for i in 0..12 {
+            let q = Pose2::new(1.0, 1.0, 0.05 * f64::from(i));
+            assert_eq!(
+                turning.choose(&q, &[(Action::RotateLeft, 1.0), (Action::Forward, 2.0)]),
+                (Action::RotateLeft, "plan")
+            );
+        }
+        // Coming back to a place for the third time is.
+        let mut circling = CycleBreaker::new(16, 3);
+        let ring = [
+            Pose2::new(1.0, 1.0, 0.0),
+            Pose2::new(2.0, 1.0, 0.0),
+            Pose2::new(2.0, 2.0, 0.0),
+        ];
+        let picks: Vec<&str> = (0..7)
+            .map(|i| {
+                circling
+                    .choose(
+                        &ring[i % 3],
+                        &[(Action::ArcLeft, 1.0), (Action::Forward, 2.0)],
+                    )
+                    .1
+            })
+            .collect();
+        assert_eq!(picks[6], "cycle escape", "{picks:?}");
+        assert_eq!(circling.broken(), 1);
         // Moving on without revisits follows the plan.
-        let mut fresh = CycleBreaker::new(16, 4);
+        let mut fresh = CycleBreaker::new(16, 3);
         for i in 0..10 {
             let q = Pose2::new(0.5 * f64::from(i), 0.0, 0.0);
             assert_eq!(

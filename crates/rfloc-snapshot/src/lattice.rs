@@ -4,10 +4,12 @@
 //! causes it gives for circling and limit cycling (section 4.1). Here the learned part of the MDP
 //! is the *motion* of each action (mean odometry increment over the exploration steps that did
 //! not stall, [`ActionModel`]), and the states are the cells of a lattice over the explored
-//! floor. Cells with no exploration pose nearby, or near a place where the wheels stalled, are
-//! blocked (a fixed high cost, the seed's edge penalty); cells within the goal radius cost 0.
-//! The Bellman update is semi-Lagrangian: `V(s) = min_a 1 + V(s ⊕ μ_a)`, with `V` between lattice
-//! points interpolated trilinearly, so actions shorter than a cell still count.
+//! floor. A step costs 1 on free floor, `edge_cost` near the edge of the explored floor, and
+//! `unknown_cost` off it or near a place where the wheels stalled (the seed's edge penalty, but
+//! with a gradient: a robot that believes it is in a costly cell is still led out of it); cells
+//! within the goal radius have value 0. The Bellman update is semi-Lagrangian:
+//! `V(s) = min_a c(s) + V(s ⊕ μ_a)`, with `V` between lattice points interpolated trilinearly,
+//! so actions shorter than a cell still count.
 
 use rfloc_pose::{wrap_angle, Pose2};
 use serde::{Deserialize, Serialize};
@@ -71,11 +73,18 @@ pub struct LatticeConfig {
     pub headings: usize,
     /// A cell is known floor when an exploration pose lies within this distance of its centre.
     pub known_radius: f64,
-    /// Cells within this distance of a stall place are blocked.
+    /// Cells within this distance of a stall place cost `unknown_cost` per step (a wall is
+    /// there).
     pub stall_radius: f64,
-    /// Cells closer than this to unknown floor are blocked (except near the goal), metres.
+    /// Cells closer than this to unknown floor cost `edge_cost` per step (except near the
+    /// goal), metres.
     pub edge_margin: f64,
-    /// Value of a blocked cell (steps).
+    /// Cost of one step from a cell near the edge of the known floor, in steps; a free cell
+    /// costs 1.
+    pub edge_cost: f64,
+    /// Cost of one step from a cell off the known floor or near a stall place.
+    pub unknown_cost: f64,
+    /// Value outside the lattice and upper bound of every value (steps).
     pub blocked_cost: f64,
     /// Gauss–Seidel sweeps at most.
     pub max_sweeps: usize,
@@ -88,10 +97,12 @@ impl Default for LatticeConfig {
         Self {
             cell: 0.15,
             headings: 32,
-            known_radius: 0.3,
+            known_radius: 0.25,
             stall_radius: 0.2,
-            edge_margin: 0.2,
-            blocked_cost: 200.0,
+            edge_margin: 0.5,
+            edge_cost: 6.0,
+            unknown_cost: 30.0,
+            blocked_cost: 1000.0,
             max_sweeps: 400,
             tolerance: 1e-3,
         }
@@ -108,7 +119,7 @@ pub struct LatticePlan {
     nx: usize,
     ny: usize,
     value: Vec<f64>,
-    blocked: Vec<bool>,
+    step_cost: Vec<f64>,
     goal: Vec<bool>,
     /// Sweeps done.
     pub sweeps: usize,
@@ -192,14 +203,20 @@ impl LatticePlan {
             false
         };
         let goal_clear = goal_radius + config.edge_margin + cell;
-        let blocked: Vec<bool> = (0..nx * ny)
+        let step_cost: Vec<f64> = (0..nx * ny)
             .map(|c| {
                 let cx = x0 + (c / ny) as f64 * cell;
                 let cy = y0 + (c % ny) as f64 * cell;
                 let k = known.get(c).copied().unwrap_or(false);
                 let s = stalled.get(c).copied().unwrap_or(false);
                 let near_goal = (cx - goal.0).hypot(cy - goal.1) <= goal_clear;
-                !k || (!near_goal && (s || near_edge(c)))
+                if !k || (s && !near_goal) {
+                    config.unknown_cost
+                } else if !near_goal && near_edge(c) {
+                    config.edge_cost
+                } else {
+                    1.0
+                }
             })
             .collect();
         let goal_cells: Vec<bool> = (0..nx * ny)
@@ -221,7 +238,7 @@ impl LatticePlan {
             nx,
             ny,
             value: vec![config.blocked_cost; nx * ny * nh],
-            blocked,
+            step_cost,
             goal: goal_cells,
             sweeps: 0,
         };
@@ -239,7 +256,7 @@ impl LatticePlan {
     }
 
     fn cell_free(&self, c: usize) -> bool {
-        !self.blocked.get(c).copied().unwrap_or(true) && !self.goal.get(c).copied().unwrap_or(false)
+        !self.goal.get(c).copied().unwrap_or(false)
     }
 
     fn iterate(&mut self) {
@@ -261,9 +278,10 @@ impl LatticePlan {
                 let cy = self.y0 + (c % self.ny) as f64 * self.config.cell;
                 for h in 0..nh {
                     let pose = Pose2::new(cx, cy, h as f64 * dh);
+                    let cost = self.step_cost.get(c).copied().unwrap_or(1.0);
                     let best = Action::ALL
                         .iter()
-                        .map(|a| 1.0 + self.value_at(&pose.compose(&self.model.increment(*a))))
+                        .map(|a| cost + self.value_at(&pose.compose(&self.model.increment(*a))))
                         .fold(f64::INFINITY, f64::min)
                         .min(self.config.blocked_cost);
                     if let Some(v) = self.value.get_mut(c * nh + h) {

@@ -10,38 +10,40 @@
 //!    [`READS_PER_STEP`] tag lists at rest, averages them (`Snapshot::average`, the seed's
 //!    `scanNetTags`), then drives the chosen action ([`actuation`]: Table 4's per-step
 //!    displacement over [`DRIVE_DURATION_S`], with the scenario's action noise). Each sample is
-//!    stored with the emulator's **true** pose (as the seed's simulator did) and, for
-//!    comparison, with the robot's odometry pose. The world has walls (the seed's had none):
-//!    when the Pioneer's SIPs report a wheel stall, the next [`STALL_TURN_STEPS`] actions are
-//!    rotations ([`reflex`]), in exploration and navigation alike.
-//! 2. **Learning** (on the blocking pool): the localisation database (`SnapshotDatabase::learn`,
-//!    k-medoids, k = n/2) is saved atomically to `snapshot-db.json` and loaded back; everything
-//!    after uses the loaded copy. The same samples with odometry poses give
-//!    `snapshot-db-odometry.json`; a coarser planning database (k = [`NAV_STATE_FRACTION`]·n,
-//!    unobserved rows stay put) gives `snapshot-db-plan.json`.
-//! 3. **Navigation** to the trial's goal: every planning state within the goal tolerance of the
-//!    goal point belongs to the goal ([`goal`]); value iteration over the merged model. Each
-//!    step reads a snapshot, runs two `StateFilter`s (localisation and planning databases;
-//!    predict with the last action, update with the snapshot) and asks the `Navigator` (window
-//!    [`NAV_WINDOW`], [`NAV_MAX_VISITS`] revisits) for an action from the planning filter's most
-//!    probable state. The robot stops when the localisation estimate is within half the goal
-//!    tolerance of the goal, or the navigator reports arrival with the estimate within the
-//!    tolerance (otherwise it takes an exploration step), or after `navigation_steps` steps.
+//!    stored with the emulator's **true** pose (as the seed's simulator did; used only for the
+//!    seed-style cluster database and scoring) and with the robot's **odometry** pose (used for
+//!    everything the robot decides). The world has walls (the seed's had none): when the
+//!    Pioneer's SIPs report a wheel stall, the odometry pose is kept as a stall place and the
+//!    next [`STALL_TURN_STEPS`] actions are rotations ([`reflex`]).
+//! 2. **Learning**: the seed's cluster database (`SnapshotDatabase::learn`, k-medoids, k = n/2,
+//!    true poses) is saved atomically to `snapshot-db.json` and loaded back; the same with
+//!    odometry poses gives `snapshot-db-odometry.json`. Both are scored as comparisons. The robot
+//!    itself uses the **fine map** (`FingerprintMap`: every exploration snapshot at its odometry
+//!    pose), the **learned motion** of each action (`ActionModel`: mean odometry increment of the
+//!    steps that did not stall) and a **lattice plan** (`LatticePlan`: value iteration on a
+//!    0.15 m × 11.25° lattice over the explored floor; steps near its edge or near stall places
+//!    cost more) to the goal point.
+//! 3. **Navigation**: each step reads a snapshot, moves a particle filter (`TrackFilter`) by the
+//!    odometry increment and weighs it by the snapshot against the fine map; the estimate's
+//!    best lattice action is taken unless the `CycleBreaker` sees a repeat (the robot back at a
+//!    place/heading for the [`CYCLE_REPEATS`]th time in [`CYCLE_WINDOW`] decisions, or reversing
+//!    its turn there), then an untried action. A wheel stall turns the robot for
+//!    [`NAV_STALL_TURN_STEPS`] steps. The robot stops when the estimate is within
+//!    [`GOAL_FRACTION`] of the goal tolerance of the goal after [`STOP_CONFIDENT_STEPS`] steps of
+//!    a tight ([`STOP_SPREAD_M`], [`STOP_MASS`]) and steady ([`STOP_JUMP_M`]) cloud, or after
+//!    `navigation_steps` steps. The particle filter starts from the first snapshot (global
+//!    localisation), not from the odometry pose the robot ended exploration with.
 //!
-//! Recorded: truth and the localisation filter's estimate at every navigation step. **Times in
-//! `truth.csv`, `estimate.csv` and `time_to_goal` are navigation steps** (the seed's Table 4.9
-//! unit), not seconds; the captures carry the emulator's simulated seconds. `navigation.csv`
-//! logs every decision, `metrics.csv` the trial's numbers. A trial succeeds when the robot stops
-//! within the goal tolerance. A "limit cycle" is counted when the true distance to the goal does
-//! not improve by [`STALL_GAIN_M`] for [`STALL_WINDOW`] steps ([`stall`]). The seed's
-//! nearest-state rule, the odometry-pose database and other filter temperatures are scored on the
-//! same navigation sequence for comparison.
+//! Recorded: truth and the particle filter's estimate at every navigation step (the seed-style
+//! histogram filter, the nearest-state rule and other filter settings are scored on the same
+//! sequence). **Times in `truth.csv`, `estimate.csv` and `time_to_goal` are navigation steps**
+//! (the seed's Table 4.9 unit), not seconds. `navigation.csv` logs every decision,
+//! `metrics.csv` the trial's numbers, and `table-4.9.md` in the output folder gathers one row per
+//! trial next to the seed's row of the same number. A trial succeeds when the robot stops within
+//! the goal tolerance. A "limit cycle" (referee) is counted when the true distance to the goal
+//! does not improve by [`STALL_GAIN_M`] for [`STALL_WINDOW`] steps ([`stall`]).
 //!
-//! Measured (2026-11-22, 20 trials, `rfloc sim scenarios/seed000-sim.toml`, dev build, 469 s
-//! wall): localisation mean 0.425 m, mean per-trial RMS 0.546 m, mean of max 1.44 m (seed:
-//! 0.338 m RMS, 1.06 m); seed's nearest-state rule on the same data 0.510 m mean; 6 of 20 goals
-//! reached; 18 of 20 trials had a 60-step stretch without progress. With 8 wall-turn steps
-//! instead of 18: 0.384 m mean, 0.501 m RMS, 1.35 m max, but 2 of 20 goals.
+//! Measured: see `docs/results.md` (seed 000) and the `rfloc-snapshot` README.
 //!
 //! Runs are seeded from the trial seed but not bit-reproducible: the emulators run on wall-clock
 //! ticks, so a stop command sometimes lands one 0.1 s tick late (`late_stops`).
@@ -98,7 +100,7 @@ pub const STOP_CONFIDENT_STEPS: usize = 3;
 /// Decisions remembered by the limit-cycle breaker, and visits of one place/heading in them
 /// that count as a cycle.
 pub const CYCLE_WINDOW: usize = 16;
-pub const CYCLE_REPEATS: usize = 4;
+pub const CYCLE_REPEATS: usize = 3;
 /// Rotation steps after a wheel stall during navigation (the plan already keeps off the walls).
 pub const NAV_STALL_TURN_STEPS: usize = 6;
 /// Likelihood temperatures compared by replaying each trial's navigation sequence.
@@ -213,14 +215,12 @@ fn track_variants() -> Vec<(&'static str, TrackConfig)> {
     let d = TrackConfig::default();
     vec![
         ("default", d),
-        ("tau_0.05", TrackConfig { tau: 0.05, ..d }),
-        ("tau_0.2", TrackConfig { tau: 0.2, ..d }),
-        ("floor_0.02", TrackConfig { floor: 0.02, ..d }),
-        ("floor_0.3", TrackConfig { floor: 0.3, ..d }),
+        ("tau_0.1", TrackConfig { tau: 0.1, ..d }),
+        ("floor_0.1", TrackConfig { floor: 0.1, ..d }),
         (
-            "reset_0.02",
+            "reset_0.05",
             TrackConfig {
-                reset_fraction: 0.02,
+                reset_fraction: 0.05,
                 ..d
             },
         ),
