@@ -19,6 +19,7 @@ use tokio::time::Instant;
 use tracing::Instrument;
 
 use crate::reader_time::{civil_from_unix, unix_from_civil, ReaderTime};
+use rfloc_transport::SharedClock;
 
 /// Supplies the tags in view and their RSSI (the simulator's field).
 pub type TagField = Arc<dyn Fn() -> Vec<(Vec<u8>, f64)> + Send + Sync>;
@@ -34,6 +35,9 @@ pub struct EmulatorOptions {
     pub idle_timeout: Option<Duration>,
     /// Refuse a second client while one is connected (listener mode).
     pub busy_when_occupied: bool,
+    /// Time base of the reader clock (tag times, `get Time`); `None` = the host's monotonic
+    /// time. A simulation passes its simulated clock so that replies depend on it alone.
+    pub clock: Option<SharedClock>,
 }
 
 impl Default for EmulatorOptions {
@@ -43,6 +47,7 @@ impl Default for EmulatorOptions {
             password: "password".to_string(),
             idle_timeout: None,
             busy_when_occupied: false,
+            clock: None,
         }
     }
 }
@@ -72,10 +77,12 @@ struct ReaderState {
     settings: BTreeMap<String, (String, String)>,
     /// Reader clock: Unix seconds at `set`, and when it was set.
     clock_base: (f64, Instant),
+    /// With a time base: Unix seconds at `set`, and the time base then.
+    simulated: Option<(SharedClock, f64, f64)>,
 }
 
 impl ReaderState {
-    fn new() -> Self {
+    fn new(clock: Option<SharedClock>) -> Self {
         let settings = SETTINGS
             .iter()
             .map(|(k, v)| (k.to_ascii_lowercase(), ((*k).to_string(), (*v).to_string())))
@@ -86,6 +93,19 @@ impl ReaderState {
         Self {
             settings,
             clock_base: (now, Instant::now()),
+            simulated: clock.map(|c| {
+                let t = c.now();
+                (c, 0.0, t)
+            }),
+        }
+    }
+
+    /// Sets the reader clock to `unix` seconds.
+    fn set_clock(&mut self, unix: f64) {
+        self.clock_base = (unix, Instant::now());
+        if let Some((c, base, at)) = &mut self.simulated {
+            *base = unix;
+            *at = c.now();
         }
     }
 
@@ -96,7 +116,10 @@ impl ReaderState {
     }
 
     fn now_unix(&self) -> f64 {
-        self.clock_base.0 + self.clock_base.1.elapsed().as_secs_f64()
+        match &self.simulated {
+            Some((c, base, at)) => base + (c.now() - at),
+            None => self.clock_base.0 + self.clock_base.1.elapsed().as_secs_f64(),
+        }
     }
 
     /// (`YYYY/MM/DD`, `hh:mm:ss[.mmm]`) of the reader clock.
@@ -158,9 +181,9 @@ impl ReaderEmulator {
     #[must_use]
     pub fn new(field: TagField, options: EmulatorOptions) -> Self {
         Self {
+            state: Arc::new(Mutex::new(ReaderState::new(options.clock.clone()))),
             field,
             options,
-            state: Arc::new(Mutex::new(ReaderState::new())),
             occupied: Arc::new(AtomicBool::new(false)),
             sessions: Arc::new(AtomicU64::new(0)),
             set_commands: Arc::new(AtomicU64::new(0)),
@@ -388,7 +411,7 @@ impl ReaderEmulator {
             else {
                 return Some(invalid);
             };
-            st.clock_base = (unix, Instant::now());
+            st.set_clock(unix);
             self.set_commands.fetch_add(1, Ordering::Relaxed);
             return Some(Outcome::Reply(format!("Time = {}", value.trim())));
         }
@@ -581,5 +604,30 @@ mod tests {
             substitute("id=%k;sig=${RSSI};x=${FOO}", &id, -40.0, "", "", 0),
             "id=47ECEDCE4236;sig=-40.0;x=${FOO}"
         );
+    }
+
+    #[test]
+    fn reader_clock_follows_the_given_time_base() {
+        let clock = rfloc_transport::ManualClock::new();
+        let emu = ReaderEmulator::new(
+            Arc::new(Vec::new),
+            EmulatorOptions {
+                clock: Some(clock.clone()),
+                ..EmulatorOptions::default()
+            },
+        );
+        let time = |emu: &ReaderEmulator| match emu.execute("get Time") {
+            Outcome::Reply(r) => r,
+            Outcome::Close(r) => panic!("closed: {r}"),
+        };
+        clock.set_ns(3_000_000_000);
+        assert!(matches!(
+            emu.execute("Time = 2000/01/01 00:00:00"),
+            Outcome::Reply(ref r) if r == "Time = 2000/01/01 00:00:00"
+        ));
+        assert_eq!(time(&emu), "Time = 2000/01/01 00:00:00");
+        // 61.5 s on the time base later (however long the host took).
+        clock.set_ns(64_500_000_000);
+        assert_eq!(time(&emu), "Time = 2000/01/01 00:01:01");
     }
 }

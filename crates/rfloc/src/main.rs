@@ -83,10 +83,6 @@ enum Command {
         /// Run only this many trials.
         #[arg(long)]
         trials: Option<usize>,
-        /// Simulated seconds per wall second, for trials whose emulators run on wall-clock time
-        /// (lock-step trials ignore it).
-        #[arg(long, default_value_t = 20.0)]
-        time_scale: f64,
     },
     /// Print the pose stream of a running daemon.
     Watch {
@@ -244,7 +240,6 @@ fn main() -> ExitCode {
             scenario: path,
             out,
             trials,
-            time_scale,
         } => {
             init_logging("warn", "text");
             run_async(scenario::run(
@@ -252,7 +247,6 @@ fn main() -> ExitCode {
                 scenario::SimOptions {
                     out,
                     trials,
-                    time_scale,
                 },
             ))
         }

@@ -2,7 +2,8 @@
 //! captures (byte for byte: the lock-step emulators and coalesced capture records leave nothing
 //! to timing) and identical truth and estimate files; another seed writes different ones, so
 //! the comparison can fail. Shortened runs of seed 003 case I, seed 002's 3×3 test and seed 001
-//! scenario A (full scenario: both systems reach the emitter within 20 s of simulated time).
+//! scenario A (full scenario: both systems reach the emitter within 20 s of simulated time)
+//! and seed 000 (150 exploration and 20 navigation steps).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::path::{Path, PathBuf};
@@ -166,5 +167,42 @@ fn seed001_a_runs_are_identical() {
         ],
     );
     let c = sim(&other, &tmp.path().join("c"));
+    assert_captures_differ(&a, &c, &caps);
+}
+
+#[test]
+fn seed000_reduced_runs_are_identical() {
+    let tmp = tempfile::tempdir().unwrap();
+    let world = format!(
+        "world_file = \"{}\"",
+        workspace()
+            .join("scenarios/worlds/seed000-5x5.toml")
+            .display()
+    );
+    let short = [
+        ("world_file = \"worlds/seed000-5x5.toml\"", world.as_str()),
+        ("exploration_steps = 1000", "exploration_steps = 150"),
+        ("navigation_steps = 500", "navigation_steps = 20"),
+    ];
+    let scenario = variant(&tmp.path().join("s"), "seed000-sim.toml", &short);
+    let a = sim(&scenario, &tmp.path().join("a"));
+    let b = sim(&scenario, &tmp.path().join("b"));
+    let caps = ["pioneer.cap", "alien.cap"];
+    let bytes = assert_same(&a, &b, &caps);
+    assert_same(
+        &a,
+        &b,
+        &["truth.csv", "estimate.csv", "navigation.csv", "snapshot-db.json"],
+    );
+    eprintln!(
+        "seed000 reduced: {} captures identical, {bytes} bytes",
+        caps.len()
+    );
+    let mut other: Vec<(&str, &str)> = short.to_vec();
+    other.push(("seed = 1000", "seed = 1100"));
+    let c = sim(
+        &variant(&tmp.path().join("o"), "seed000-sim.toml", &other),
+        &tmp.path().join("c"),
+    );
     assert_captures_differ(&a, &c, &caps);
 }

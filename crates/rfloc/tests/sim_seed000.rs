@@ -99,9 +99,8 @@ fn seed000_reduced_trial_learns_localises_and_records() {
     ] {
         assert!(value(m).is_finite(), "{m}");
     }
-    // A loose bound: 300 snapshots are under a third of the seed's learning data, and the
-    // emulators run in scaled wall time, so the reduced trial varies from run to run (seen:
-    // 0.4–1.33 m). Chance level in the 5 m × 5 m area is about 2.6 m.
+    // A loose bound: 300 snapshots are under a third of the seed's learning data. Chance
+    // level in the 5 m × 5 m area is about 2.6 m.
     let mean = value("mean_error_m");
     assert!(mean < 1.6, "mean localisation error {mean} m\n{stdout}");
     // One estimate per navigation step, all inside the 5 m × 5 m area.

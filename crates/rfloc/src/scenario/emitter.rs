@@ -34,7 +34,7 @@
 //! and the emulated Pioneer moves only when the trial ticks it, after it has handled every byte
 //! the driver wrote. A run is therefore a function of the scenario and the seed alone: two runs
 //! with one seed write identical captures, truth and estimate files
-//! (`tests/sim_determinism.rs`). `--time-scale` does not apply.
+//! (`tests/sim_determinism.rs`).
 
 use std::path::Path;
 
@@ -81,7 +81,6 @@ pub async fn run_trial(
     dir: &Path,
     opts: &SimOptions,
 ) -> anyhow::Result<TrialRecorder> {
-    // Lock-step emulator: `opts.time_scale` does not apply (see the module documentation).
     let _ = opts;
     let full = scenario.spec.pipeline != Pipeline::EmitterPreliminary;
     let spec = |use_planner: bool, primary: bool| RunSpec {

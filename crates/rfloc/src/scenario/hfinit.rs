@@ -21,7 +21,7 @@
 //! the odometry first and then the scan's tag events, and sends its command. Times of truth,
 //! estimates, events and capture records are the Pioneer emulator's simulated seconds, and a
 //! run depends on the scenario and seed alone: two runs with one seed write identical files
-//! (`tests/sim_determinism.rs`). `--time-scale` does not apply.
+//! (`tests/sim_determinism.rs`).
 
 use std::path::Path;
 use std::sync::Arc;
@@ -165,7 +165,6 @@ pub async fn run_trial(
     dir: &Path,
     opts: &SimOptions,
 ) -> anyhow::Result<TrialRecorder> {
-    // Lock-step emulators: `opts.time_scale` does not apply.
     let _ = opts;
     let mut rec = TrialRecorder::new(scenario, trial);
     let start = scenario.start_pose(trial);

@@ -25,10 +25,6 @@ pub struct SimOptions {
     pub out: Option<PathBuf>,
     /// Run only this many trials (default: the scenario's count).
     pub trials: Option<usize>,
-    /// Simulated seconds per wall second for emulators that run on wall-clock time (seed 000
-    /// and seed 001 trials). Lock-step trials (seed 002, seed 003) run as fast as the machine
-    /// allows and ignore it.
-    pub time_scale: f64,
 }
 
 /// Where one trial writes its captures.

@@ -45,8 +45,9 @@
 //!
 //! Measured: see `docs/results.md` (seed 000) and the `rfloc-snapshot` README.
 //!
-//! Runs are seeded from the trial seed but not bit-reproducible: the emulators run on wall-clock
-//! ticks, so a stop command sometimes lands one 0.1 s tick late (`late_stops`).
+//! Reproducibility: every random draw is seeded from the trial seed, and the Pioneer runs in
+//! lock-step with the trial (see [`rig`]), so a run is a function of the scenario and the seed:
+//! two runs write identical captures, truth and estimates (`tests/sim_determinism.rs`).
 
 use std::path::Path;
 use std::time::Instant;
@@ -105,8 +106,6 @@ pub const CYCLE_REPEATS: usize = 3;
 pub const NAV_STALL_TURN_STEPS: usize = 6;
 /// Likelihood temperatures compared by replaying each trial's navigation sequence.
 pub const REPLAY_TAUS: [f64; 5] = [0.03, 0.06, 0.12, 0.25, 0.5];
-/// The snapshot trials run at least this many simulated seconds per wall second.
-pub const MIN_TIME_SCALE: f64 = 100.0;
 
 /// Seed 000 Table 4.9, per trial: max and RMS localisation error (m), initial and max distance
 /// to the goal (m), steps to the goal, comment.
@@ -359,7 +358,7 @@ pub async fn run_trial(
     scenario: &Scenario,
     trial: usize,
     dir: &Path,
-    opts: &SimOptions,
+    _opts: &SimOptions,
 ) -> anyhow::Result<TrialRecorder> {
     let wall = Instant::now();
     let mut rec = TrialRecorder::new(scenario, trial);
@@ -381,18 +380,12 @@ pub async fn run_trial(
         .goal(trial)
         .zip(scenario.spec.goal.map(|g| g.tolerance_m))
         .context("the snapshot scenario needs a goal")?;
-    let time_scale = if opts.time_scale.is_finite() {
-        opts.time_scale.max(MIN_TIME_SCALE)
-    } else {
-        MIN_TIME_SCALE
-    };
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x534e_4150_5348_4f54);
 
     let mut rig = SnapshotRig::start(&RigSpec {
         scenario,
         trial,
         dir,
-        time_scale,
         reads_per_step: READS_PER_STEP,
         slip: WHEEL_SLIP,
     })
@@ -662,7 +655,6 @@ pub async fn run_trial(
     rec.metric("cycles_broken", cycles.broken() as f64);
     rec.metric("navigation_wall_stalls", f64::from(nav_stalls));
     rec.metric("exploration_stall_places", stall_poses.len() as f64);
-    rec.metric("late_stops", counters.late_stops as f64);
     rec.metric("unsettled_stops", counters.unsettled as f64);
     rec.metric("wheel_stall_actions", counters.stalls as f64);
     rec.metric("wall_turns", reflex.triggered() as f64);

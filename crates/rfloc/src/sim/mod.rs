@@ -50,7 +50,20 @@ pub fn trial_capture(
     clock: rfloc_transport::SharedClock,
     notes: &[&str],
 ) -> anyhow::Result<rfloc_transport::CaptureSink> {
-    let mut header = rfloc_capture::Header::new(device, link.describe());
+    trial_capture_described(dir, file, device, &link.describe(), clock, notes)
+}
+
+/// As [`trial_capture`], with the link described by `link` (for links whose address changes
+/// from run to run, such as an emulator's ephemeral loopback port).
+pub fn trial_capture_described(
+    dir: &std::path::Path,
+    file: &str,
+    device: &str,
+    link: &str,
+    clock: rfloc_transport::SharedClock,
+    notes: &[&str],
+) -> anyhow::Result<rfloc_transport::CaptureSink> {
+    let mut header = rfloc_capture::Header::new(device, link.to_string());
     header.notes.extend(notes.iter().map(|n| (*n).to_string()));
     let path = dir.join(file);
     rfloc_transport::CaptureSink::create(&path, &header, clock)

@@ -4,19 +4,27 @@
 //!
 //! The reader's tag field is the scenario's UHF model evaluated at the antenna pose derived
 //! from the emulator's *true* pose at the moment the reader answers `t`.
+//!
+//! Timing: the Pioneer runs in lock-step with the trial ([`LockstepBase`]): simulated time
+//! moves only when an action asks for its ticks, after the emulator has handled every command
+//! the driver wrote. Tag lists are read while the clock stands still, and the reader (prompts
+//! suppressed) ends every reply with its last byte, a NUL the driver reads before it returns;
+//! so every byte on both links is sent and read at a simulated time fixed by the scenario and
+//! the seed. Both captures coalesce same-time records, and a rerun writes identical files.
 
 use std::path::Path;
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
+use crate::scenario::lockstep::{driver_config, LockstepBase};
 use crate::sim::EmulatorClock;
 use anyhow::Context;
 use rfloc_alien::{
     AlienClient, AlienConfig, EmulatorOptions, ReaderEmulator, ReaderSetup, SnapshotReader,
 };
 use rfloc_aria::{
-    AriaClient, ClientConfig, EmulatorConfig as RobotConfig, EmulatorHandle, MotionHook,
-    RobotEmulator, WheelSlip,
+    AriaClient, EmulatorConfig as RobotConfig, EmulatorHandle, MotionHook, RobotEmulator,
+    WheelSlip,
 };
 use rfloc_pose::Pose2;
 use rfloc_sim::{Point, Scenario, SensorSuite, World};
@@ -27,15 +35,15 @@ use tokio_util::sync::CancellationToken;
 
 use crate::sim::pty_link;
 
-/// Wall-clock limit for any single wait on the emulated robot.
-const WAIT_LIMIT: Duration = Duration::from_secs(10);
-/// Wall-clock floor of the Pioneer driver's link timeout.
-const LINK_TIMEOUT_FLOOR: Duration = Duration::from_secs(10);
+/// The Pioneer's SIP period (one lock-step tick), seconds.
+const TICK_S: f64 = 0.1;
 /// The robot counts as stopped below these speeds (m/s, rad/s).
 const STOPPED_V: f64 = 1e-3;
 const STOPPED_W: f64 = 1e-3;
-/// Longest simulated wait for the robot to come to rest after a stop command.
-const SETTLE_LIMIT_S: f64 = 2.0;
+/// The reader time a simulated trial sets (the lock-step trial starts at simulated time 0).
+const SIMULATED_READER_TIME: &str = "2000/01/01 00:00:00";
+/// Most ticks to wait for the robot to come to rest after a stop command (2 s).
+const SETTLE_TICKS: u32 = 20;
 
 type RecordedTcp = Recorder<rfloc_transport::Transport>;
 
@@ -46,9 +54,7 @@ pub struct RigCounters {
     pub reads: u64,
     /// Tag IDs from the world that were not hex (skipped by the field).
     pub bad_epcs: u64,
-    /// Actions whose stop command landed after the planned duration.
-    pub late_stops: u64,
-    /// Stops that did not settle within [`SETTLE_LIMIT_S`].
+    /// Stops that did not settle within [`SETTLE_TICKS`].
     pub unsettled: u64,
     /// Actions during which the driver reported a wheel stall.
     pub stalls: u64,
@@ -57,7 +63,7 @@ pub struct RigCounters {
 /// Emulators plus connected drivers of one trial.
 pub struct SnapshotRig {
     truth: EmulatorHandle,
-    base: AriaClient,
+    base: LockstepBase,
     reader: AlienClient<RecordedTcp>,
     start: Pose2,
     average: AverageConfig,
@@ -88,7 +94,6 @@ pub struct RigSpec<'a> {
     pub scenario: &'a Scenario,
     pub trial: usize,
     pub dir: &'a Path,
-    pub time_scale: f64,
     pub reads_per_step: usize,
     /// Relative σ of the wheel slip applied to the truth only (odometry does not see it).
     pub slip: f64,
@@ -110,7 +115,6 @@ impl SnapshotRig {
         // a second of simulated time.
         let (robot_master, robot_slave, robot_link) = pty_link(9600)?;
         let mut robot = RobotEmulator::new(RobotConfig {
-            time_scale: spec.time_scale,
             initial_pose: start,
             noise_seed: seed,
             trans_accel: 2000.0,
@@ -127,6 +131,7 @@ impl SnapshotRig {
             Arc::clone(&world),
             scenario.spec.robot.drive.body_radius,
         ));
+        let control = robot.lock_step();
         let truth = robot.handle();
         let clock: SharedClock = Arc::new(EmulatorClock(truth.clone()));
         let robot_stop = stop.clone();
@@ -158,7 +163,14 @@ impl SnapshotRig {
             }
             out
         });
-        let emulator = ReaderEmulator::new(field, EmulatorOptions::default());
+        // The reader's clock (tag times) runs on the simulated time.
+        let emulator = ReaderEmulator::new(
+            field,
+            EmulatorOptions {
+                clock: Some(clock.clone()),
+                ..EmulatorOptions::default()
+            },
+        );
         let (addr, reader_task) = emulator
             .bind_loopback()
             .await
@@ -180,34 +192,36 @@ impl SnapshotRig {
             clock.clone(),
             &[note.as_str()],
         )?;
+        base_sink.set_coalescing(true);
         let base_io = Recorder::new(open(&robot_link).await?, base_sink.clone());
-        let mut base_config = ClientConfig {
-            clock: Some(clock.clone()),
-            ..ClientConfig::default()
-        }
-        .scaled(spec.time_scale);
-        // Scaled link timeouts are a few milliseconds of wall time; learning between the phases
-        // may hold a core for longer than that.
-        base_config.link_timeout = base_config.link_timeout.max(LINK_TIMEOUT_FLOOR);
-        let base = AriaClient::from_stream(base_io, base_config)
+        let base = AriaClient::from_stream(base_io, driver_config(clock.clone()))
             .await
             .context("Pioneer handshake")?;
+        let base = LockstepBase::new(base, control, truth.clone(), base_sink.clone());
 
-        let reader_sink = crate::sim::trial_capture(
+        // The emulator's port is chosen per run; the header names the link without it so that
+        // reruns write identical captures.
+        let reader_sink = crate::sim::trial_capture_described(
             spec.dir,
             "alien.cap",
             "alien-alr9900",
-            &reader_link,
+            "tcp 127.0.0.1 (emulator on an ephemeral port)",
             clock.clone(),
             &[note.as_str()],
         )?;
+        reader_sink.set_coalescing(true);
         let reader_io = Recorder::new(
             open(&reader_link)
                 .await
                 .context("connecting to the reader")?,
             reader_sink.clone(),
         );
-        let mut reader = AlienClient::connect(reader_io, AlienConfig::default(), clock.clone())
+        // The reader's clock is set to the simulated mission's epoch, not the host's date.
+        let reader_config = AlienConfig {
+            time_source: Arc::new(|| SIMULATED_READER_TIME.to_string()),
+            ..AlienConfig::default()
+        };
+        let mut reader = AlienClient::connect(reader_io, reader_config, clock.clone())
             .await
             .context("reader login")?;
         reader
@@ -252,7 +266,7 @@ impl SnapshotRig {
     /// driver's odometry (the odometry frame starts where the client connected, at rest).
     #[must_use]
     pub fn odometry_pose(&self) -> Pose2 {
-        let odom = self.base.odometry();
+        let odom = self.base.client().odometry();
         let p = odom.borrow().pose;
         self.start.compose(&p)
     }
@@ -284,57 +298,30 @@ impl SnapshotRig {
         Ok(Snapshot::average(&reads, &self.average))
     }
 
-    /// Drives `cmd` for `duration_s` simulated seconds through the Pioneer driver, then stops
-    /// and waits until the robot is at rest. Returns true when the driver's SIPs reported a
-    /// wheel stall during the action (the robot pushed against a wall).
+    /// Drives `cmd` for `duration_s` simulated seconds (whole SIP periods) through the Pioneer
+    /// driver, then stops and ticks until the robot is at rest. Returns true when the driver's
+    /// SIPs reported a wheel stall during the action (the robot pushed against a wall).
     pub async fn drive(&mut self, cmd: MotionCommand, duration_s: f64) -> anyhow::Result<bool> {
-        let odom = self.base.odometry();
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let ticks = (duration_s / TICK_S).round().clamp(1.0, 1e6) as u32;
+        self.base.set_velocity(cmd.v, cmd.omega).await?;
         let mut stalled = false;
-        let mut rx = self.truth.subscribe();
-        let t0 = rx.borrow_and_update().sim_time;
-        self.base
-            .set_velocity(cmd.v, cmd.omega)
-            .await
-            .context("velocity command")?;
-        // Stop at the first tick at or after the planned end (half a tick early so that a
-        // prompt stop lands on the planned tick).
-        let end = t0 + duration_s - 0.05;
-        loop {
-            let now = rx.borrow_and_update().sim_time;
-            {
-                let o = odom.borrow();
-                stalled |= o.left_stall || o.right_stall;
-            }
-            if now >= end {
-                if now > end + 0.1 {
-                    self.counters.late_stops += 1;
-                }
-                break;
-            }
-            tokio::time::timeout(WAIT_LIMIT, rx.changed())
-                .await
-                .context("the emulated Pioneer stopped advancing")?
-                .context("the emulated Pioneer ended")?;
+        for _ in 0..ticks {
+            let (o, _) = self.base.tick().await?;
+            stalled |= o.left_stall || o.right_stall;
         }
-        self.base
-            .set_velocity(0.0, 0.0)
-            .await
-            .context("stop command")?;
-        let t_stop = rx.borrow_and_update().sim_time;
-        loop {
-            let st = *rx.borrow_and_update();
-            // Two ticks after the stop so that the command has been read.
-            if st.sim_time >= t_stop + 0.15 && st.v.abs() < STOPPED_V && st.w.abs() < STOPPED_W {
+        self.base.set_velocity(0.0, 0.0).await?;
+        let mut settled = false;
+        for _ in 0..SETTLE_TICKS {
+            let (o, st) = self.base.tick().await?;
+            stalled |= o.left_stall || o.right_stall;
+            if st.v.abs() < STOPPED_V && st.w.abs() < STOPPED_W {
+                settled = true;
                 break;
             }
-            if st.sim_time > t_stop + SETTLE_LIMIT_S {
-                self.counters.unsettled += 1;
-                break;
-            }
-            tokio::time::timeout(WAIT_LIMIT, rx.changed())
-                .await
-                .context("the emulated Pioneer stopped advancing")?
-                .context("the emulated Pioneer ended")?;
+        }
+        if !settled {
+            self.counters.unsettled += 1;
         }
         if stalled {
             self.counters.stalls += 1;
@@ -346,7 +333,7 @@ impl SnapshotRig {
     pub async fn shutdown(self) -> anyhow::Result<()> {
         let _ = self.base.set_velocity(0.0, 0.0).await;
         let _ = self.reader.quit().await;
-        self.base.shutdown().await.ok();
+        self.base.shutdown().await;
         for s in &self.sinks {
             s.flush().context("flushing a capture")?;
         }
