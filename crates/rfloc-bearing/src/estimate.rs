@@ -8,6 +8,7 @@ use serde::{Deserialize, Serialize};
 use tracing::warn;
 
 use crate::pathloss::PathLossModel;
+use crate::pattern::GainPattern;
 use crate::sweep::Sweep;
 
 /// Settings of the peak search and of the variances.
@@ -36,6 +37,11 @@ pub struct EstimatorConfig {
     pub rssi_noise_sigma_db: f64,
     /// Added to every bearing variance, rad² (e.g. multipath and mounting error).
     pub bearing_variance_floor_rad2: f64,
+    /// The antenna's calibrated gain pattern. When given, bearing and peak level come from a
+    /// least-squares fit of the whole pattern to every stop of the sweep (see
+    /// `fit_pattern`) instead of the parabola over the stops near the maximum.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pattern: Option<GainPattern>,
 }
 
 impl Default for EstimatorConfig {
@@ -51,6 +57,7 @@ impl Default for EstimatorConfig {
             fit_half_width_deg: 40.0,
             rssi_noise_sigma_db: 2.0,
             bearing_variance_floor_rad2: 0.0,
+            pattern: None,
         }
     }
 }
@@ -363,12 +370,20 @@ fn estimate_beacon(
         w
     };
     let quant_var = step * step / 12.0;
-    let window: Vec<(f64, f64, f64)> = window_at(k).iter().map(|&(x, y, w, _)| (x, y, w)).collect();
-    let fit = fit_parabola(&window, cfg.rssi_noise_sigma_db).map(|f| (peak.dir, f));
-    let (dir, peak_rssi, mut var) = match fit {
-        Some((c, f)) => (c + f.vertex, f.value, f.vertex_variance.max(quant_var)),
-        // Too few neighbours or not concave: keep the strongest stop.
-        None => (peak.dir, y0, step * step / 4.0),
+    let pattern_fit = cfg.pattern.as_ref().and_then(|pattern| {
+        fit_pattern(&pts, peak.dir, half, step, pattern, cfg.rssi_noise_sigma_db)
+    });
+    let (dir, peak_rssi, mut var) = if let Some(f) = pattern_fit {
+        (f.direction, f.level, f.variance)
+    } else {
+        let window: Vec<(f64, f64, f64)> =
+            window_at(k).iter().map(|&(x, y, w, _)| (x, y, w)).collect();
+        let fit = fit_parabola(&window, cfg.rssi_noise_sigma_db).map(|f| (peak.dir, f));
+        match fit {
+            Some((c, f)) => (c + f.vertex, f.value, f.vertex_variance.max(quant_var)),
+            // Too few neighbours or not concave: keep the strongest stop.
+            None => (peak.dir, y0, step * step / 4.0),
+        }
     };
     var += cfg.bearing_variance_floor_rad2;
 
@@ -398,6 +413,107 @@ fn angle_gap(a: f64, b: f64, circular: bool) -> f64 {
     } else {
         (b - a).abs()
     }
+}
+
+/// Result of the gain-pattern fit.
+struct PatternFit {
+    /// Boresight direction that fits best, same frame as the points' directions, radians.
+    direction: f64,
+    /// Received level on boresight, dBm.
+    level: f64,
+    /// Variance of `direction` (Cramér–Rao bound of the fit), rad².
+    variance: f64,
+}
+
+/// Weighted squared residuals of the stops against `level + G(dir − β)` with the level that fits
+/// best for this `β` (the weighted mean of `rssi − G`). Returns `(cost, level)`.
+fn pattern_cost(pts: &[Point], pattern: &GainPattern, beta: f64) -> (f64, f64) {
+    let (mut sw, mut swr, mut swrr) = (0.0, 0.0, 0.0);
+    for p in pts {
+        let w = p.n as f64;
+        let r = p.rssi - pattern.gain_db(p.dir - beta);
+        sw += w;
+        swr += w * r;
+        swrr += w * r * r;
+    }
+    if sw <= 0.0 {
+        return (f64::INFINITY, f64::NAN);
+    }
+    let level = swr / sw;
+    ((swrr - swr * level).max(0.0), level)
+}
+
+/// Least-squares fit of the known gain pattern to every stop: `rssi_i = L + G(dir_i − β) + e_i`,
+/// `e_i` of σ `sigma / √n_i` (`n_i` readings averaged at the stop), over the boresight
+/// direction `β` and the level `L`. `β` is searched on a grid of step/8 within `half` of
+/// `centre` (the strongest smoothed stop), then refined by golden-section search; `L` is solved
+/// in closed form for each `β`. The variance is the Cramér–Rao bound with `L` unknown:
+/// `σ² / (Σ n_i s_i² − (Σ n_i s_i)² / Σ n_i)`, `s_i = G'(dir_i − β̂)`. Every stop counts, not only
+/// those near the maximum: the flanks of the lobe, where the gain changes fastest, carry most
+/// of the bearing information. `None` when no minimum is found or the information is zero.
+fn fit_pattern(
+    pts: &[Point],
+    centre: f64,
+    half: f64,
+    step: f64,
+    pattern: &GainPattern,
+    sigma: f64,
+) -> Option<PatternFit> {
+    if pts.len() < 3 || !(half > 0.0 && step > 0.0) {
+        return None;
+    }
+    let grid = step / 8.0;
+    let cells = (half / grid).ceil() as i64;
+    let mut best: Option<(f64, f64)> = None;
+    for j in -cells..=cells {
+        let beta = centre + j as f64 * grid;
+        let (c, _) = pattern_cost(pts, pattern, beta);
+        if c.is_finite() && best.is_none_or(|(bc, _)| c < bc) {
+            best = Some((c, beta));
+        }
+    }
+    let (_, beta0) = best?;
+    // Golden-section refinement within one grid cell either side.
+    let g = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut a, mut b) = (beta0 - grid, beta0 + grid);
+    let mut x1 = b - g * (b - a);
+    let mut x2 = a + g * (b - a);
+    let mut f1 = pattern_cost(pts, pattern, x1).0;
+    let mut f2 = pattern_cost(pts, pattern, x2).0;
+    for _ in 0..40 {
+        if f1 < f2 {
+            b = x2;
+            x2 = x1;
+            f2 = f1;
+            x1 = b - g * (b - a);
+            f1 = pattern_cost(pts, pattern, x1).0;
+        } else {
+            a = x1;
+            x1 = x2;
+            f1 = f2;
+            x2 = a + g * (b - a);
+            f2 = pattern_cost(pts, pattern, x2).0;
+        }
+    }
+    let beta = 0.5 * (a + b);
+    let (_, level) = pattern_cost(pts, pattern, beta);
+    let (mut sw, mut sws, mut swss) = (0.0, 0.0, 0.0);
+    for p in pts {
+        let w = p.n as f64;
+        let s = pattern.slope_db_per_rad(p.dir - beta);
+        sw += w;
+        sws += w * s;
+        swss += w * s * s;
+    }
+    let info = swss - sws * sws / sw.max(f64::MIN_POSITIVE);
+    if !(info > 0.0 && level.is_finite() && beta.is_finite()) {
+        return None;
+    }
+    Some(PatternFit {
+        direction: beta,
+        level,
+        variance: sigma * sigma / info,
+    })
 }
 
 /// Result of the least-squares parabola fit.

@@ -20,7 +20,7 @@ mod sweep;
 
 pub use estimate::{estimate_sweep, BeaconObservation, EstimatorConfig, Rejection, SweepReport};
 pub use pathloss::{PathLossModel, RangeEstimate};
-pub use pattern::ReflectorPattern;
+pub use pattern::{CosinePowerPattern, GainPattern, ReflectorPattern};
 pub use planner::{PlanError, SweepPlanConfig, SweepPlanner};
 pub use probe::RssiProbe;
 pub use runner::{ScanConfig, ScanError, ScanResult, ScanRunner};

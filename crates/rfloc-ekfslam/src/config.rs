@@ -139,6 +139,7 @@ impl Default for Gate {
 /// RSSI-only or bearing-only readings): views are collected and the beacon is triangulated once
 /// the views constrain it.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct DelayedInit {
     /// Minimum number of views before a triangulation is attempted.
     pub min_views: usize,
@@ -149,6 +150,16 @@ pub struct DelayedInit {
     /// Accept the triangulated position only if the largest standard deviation of its 2×2
     /// covariance is at most this (m).
     pub max_std_m: f64,
+    /// Keep a copy of the robot pose of every view in the filter state (one per update batch
+    /// that stores a view), correlated with everything else and refined by later updates, until
+    /// no pending view refers to it. The triangulated beacon then enters the map with its exact
+    /// first-order cross-covariances to those poses, so views from a well-known pose (e.g. near
+    /// the start) keep their weight. When false, the views' poses are taken as exact and the
+    /// beacon is attached to the current pose.
+    pub view_poses_in_state: bool,
+    /// Also delay observations that carry both a range (or RSSI) and a bearing: collect them as
+    /// views and triangulate, instead of adding the beacon at once by the inverse model.
+    pub delay_range_bearing: bool,
 }
 
 impl Default for DelayedInit {
@@ -158,6 +169,8 @@ impl Default for DelayedInit {
             max_views: 30,
             min_baseline_m: 0.5,
             max_std_m: 1.5,
+            view_poses_in_state: true,
+            delay_range_bearing: false,
         }
     }
 }

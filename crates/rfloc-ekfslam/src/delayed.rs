@@ -4,7 +4,7 @@
 
 use std::collections::VecDeque;
 
-use nalgebra::{Matrix2, Vector2, Vector3};
+use nalgebra::{Matrix2, Matrix2x3, Vector2, Vector3};
 use rfloc_pose::wrap_angle;
 
 use crate::config::{EkfSlamConfig, RssiHandling};
@@ -14,9 +14,25 @@ use crate::observation::{BearingReading, RangeReading};
 /// One stored view of a not-yet-mapped beacon.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct View {
+    /// Pose estimate when the view was taken.
     pub pose: Vector3<f64>,
+    /// The copy of that pose kept in the filter state, if any (see
+    /// [`crate::DelayedInit::view_poses_in_state`]).
+    pub clone: Option<u64>,
     pub range: Option<RangeReading>,
     pub bearing: Option<BearingReading>,
+}
+
+/// A triangulated beacon.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Triangulated {
+    /// Position, m.
+    pub position: Vector2<f64>,
+    /// Covariance from the measurement noise alone (view poses taken as exact), m².
+    pub cov: Matrix2<f64>,
+    /// Per view (same order as the pending views): `∂position/∂(view pose)`, from the
+    /// optimality condition of the weighted least-squares fit.
+    pub d_view_pose: Vec<Matrix2x3<f64>>,
 }
 
 /// Views collected for one pending beacon.
@@ -33,6 +49,8 @@ enum Kind {
 }
 
 struct Scalar {
+    /// Index of the view in the pending list.
+    view: usize,
     pose: Vector3<f64>,
     kind: Kind,
     value: f64,
@@ -115,19 +133,79 @@ fn linear_guess(views: &VecDeque<View>, cfg: &EkfSlamConfig) -> Option<Vector2<f
     ata.try_inverse().map(|inv| inv * aty)
 }
 
-/// Tries to triangulate the beacon. Returns its position and 2×2 covariance when the views
-/// constrain it well enough (see [`crate::DelayedInit`]).
+/// Weighted residual cost `Σ r²/σ²`, information `Σ h hᵀ/σ²` and gradient `Σ h r/σ²` at `b`.
+fn normal_equations(
+    scalars: &[Scalar],
+    b: &Vector2<f64>,
+    cfg: &EkfSlamConfig,
+) -> Option<(f64, Matrix2<f64>, Vector2<f64>)> {
+    let mut info = Matrix2::zeros();
+    let mut grad = Vector2::zeros();
+    let mut cost = 0.0;
+    for s in scalars {
+        let r = row(s, b, cfg)?;
+        let mut res = s.value - r.predicted;
+        if matches!(s.kind, Kind::Bearing) {
+            res = wrap_angle(res);
+        }
+        let h = Vector2::new(r.d_beacon[0], r.d_beacon[1]);
+        info += h * h.transpose() / s.variance;
+        grad += h * res / s.variance;
+        cost += res * res / s.variance;
+    }
+    Some((cost, info, grad))
+}
+
+/// Gauss–Newton from `b` (full steps, 30 at most); returns the visited point of lowest cost,
+/// with the information there and the cost.
+fn gauss_newton(
+    scalars: &[Scalar],
+    mut b: Vector2<f64>,
+    cfg: &EkfSlamConfig,
+) -> Option<(Vector2<f64>, Matrix2<f64>, f64)> {
+    let (cost, info, mut grad) = normal_equations(scalars, &b, cfg)?;
+    let mut best = (b, info, cost);
+    let mut info = info;
+    for _ in 0..30 {
+        let step = info.try_inverse()? * grad;
+        b += step;
+        let Some((c, i, g)) = normal_equations(scalars, &b, cfg) else {
+            break;
+        };
+        (info, grad) = (i, g);
+        if c < best.2 {
+            best = (b, i, c);
+        }
+        if step.norm() < 1e-7 {
+            break;
+        }
+    }
+    Some(best)
+}
+
+/// Tries to triangulate the beacon, with the views' poses as given by `pose_of` (the stored
+/// estimate, or the current estimate of the view's pose copy in the state). Returns its position,
+/// covariance and Jacobians when the views constrain it well enough (see [`crate::DelayedInit`]).
 pub(crate) fn triangulate(
     pending: &PendingBeacon,
     cfg: &EkfSlamConfig,
-) -> Option<(Vector2<f64>, Matrix2<f64>)> {
+    pose_of: impl Fn(&View) -> Vector3<f64>,
+) -> Option<Triangulated> {
     let dc = &cfg.delayed_init;
     if pending.views.len() < dc.min_views.max(2) {
         return None;
     }
+    let views: VecDeque<View> = pending
+        .views
+        .iter()
+        .map(|v| View {
+            pose: pose_of(v),
+            ..*v
+        })
+        .collect();
     let mut baseline: f64 = 0.0;
-    for a in &pending.views {
-        for b in &pending.views {
+    for a in &views {
+        for b in &views {
             baseline = baseline.max((a.pose.x - b.pose.x).hypot(a.pose.y - b.pose.y));
         }
     }
@@ -135,10 +213,11 @@ pub(crate) fn triangulate(
         return None;
     }
     let mut scalars = Vec::new();
-    for v in &pending.views {
+    for (k, v) in views.iter().enumerate() {
         if let Some(r) = v.range {
             let (is_rssi, value, variance) = range_scalar(&r, cfg);
             scalars.push(Scalar {
+                view: k,
                 pose: v.pose,
                 kind: if is_rssi { Kind::Rssi } else { Kind::Range },
                 value,
@@ -147,6 +226,7 @@ pub(crate) fn triangulate(
         }
         if let Some(b) = v.bearing {
             scalars.push(Scalar {
+                view: k,
                 pose: v.pose,
                 kind: Kind::Bearing,
                 value: b.bearing_rad,
@@ -157,30 +237,30 @@ pub(crate) fn triangulate(
     if scalars.len() < 3 {
         return None;
     }
-    let mut b = linear_guess(&pending.views, cfg)?;
-    let mut info = Matrix2::zeros();
-    let mut cost = 0.0;
-    for _ in 0..30 {
-        info = Matrix2::zeros();
-        let mut grad = Vector2::zeros();
-        cost = 0.0;
-        for s in &scalars {
-            let r = row(s, &b, cfg)?;
-            let mut res = s.value - r.predicted;
-            if matches!(s.kind, Kind::Bearing) {
-                res = wrap_angle(res);
-            }
-            let h = Vector2::new(r.d_beacon[0], r.d_beacon[1]);
-            info += h * h.transpose() / s.variance;
-            grad += h * res / s.variance;
-            cost += res * res / s.variance;
-        }
-        let step = info.try_inverse()? * grad;
-        b += step;
-        if step.norm() < 1e-7 {
-            break;
-        }
+    // The problem is not convex (ranges from RSSI are noisy, bearings from a short baseline
+    // nearly parallel): Gauss–Newton from several starting points, the lowest cost wins.
+    let bearings_only: VecDeque<View> = views.iter().map(|v| View { range: None, ..*v }).collect();
+    let mut starts: Vec<Vector2<f64>> =
+        [linear_guess(&views, cfg), linear_guess(&bearings_only, cfg)]
+            .into_iter()
+            .flatten()
+            .collect();
+    let inverse: Vec<Vector2<f64>> = views
+        .iter()
+        .filter_map(|v| {
+            let (r, b) = (v.range?, v.bearing?);
+            let a = v.pose.z + b.bearing_rad;
+            let d = metric_range(&r, cfg);
+            Some(Vector2::new(v.pose.x + d * a.cos(), v.pose.y + d * a.sin()))
+        })
+        .collect();
+    if !inverse.is_empty() {
+        starts.push(inverse.iter().sum::<Vector2<f64>>() / inverse.len() as f64);
     }
+    let (b, info, cost) = starts
+        .into_iter()
+        .filter_map(|b0| gauss_newton(&scalars, b0, cfg))
+        .min_by(|a, b| a.2.total_cmp(&b.2))?;
     let cov = info.try_inverse()?;
     let dof = (scalars.len() - 2) as f64;
     let max_cost = dof + 4.0 * (2.0 * dof).sqrt() + 10.0;
@@ -194,5 +274,20 @@ pub(crate) fn triangulate(
     {
         return None;
     }
-    Some((b, (cov + cov.transpose()) / 2.0))
+    // At the optimum Σ h_bᵀ r / σ² = 0; perturbing a view pose by δc moves each of its residuals
+    // by −h_c·δc, so δb = −C Σ h_b h_cᵀ δc / σ² over that view's scalars.
+    let mut d_view_pose = vec![Matrix2x3::zeros(); views.len()];
+    for s in &scalars {
+        let r = row(s, &b, cfg)?;
+        let hb = Vector2::new(r.d_beacon[0], r.d_beacon[1]);
+        let hc = Vector3::new(r.d_pose[0], r.d_pose[1], r.d_pose[2]);
+        if let Some(j) = d_view_pose.get_mut(s.view) {
+            *j -= cov * hb * hc.transpose() / s.variance;
+        }
+    }
+    Some(Triangulated {
+        position: b,
+        cov: (cov + cov.transpose()) / 2.0,
+        d_view_pose,
+    })
 }

@@ -3,11 +3,13 @@
 
 use std::collections::HashMap;
 
-use nalgebra::{DMatrix, DVector, Matrix2, Matrix2x3, Matrix3, Vector2, Vector3};
+use std::collections::HashSet;
+
+use nalgebra::{DMatrix, DVector, Matrix2, Matrix2x3, Matrix2xX, Matrix3, Vector2, Vector3};
 use rfloc_pose::{wrap_angle, EstimateMode, Pose2, PoseEstimate};
 
 use crate::config::{CovarianceUpdate, EkfSlamConfig, RssiHandling};
-use crate::delayed::{triangulate, PendingBeacon, View};
+use crate::delayed::{triangulate, PendingBeacon, Triangulated, View};
 use crate::error::{EkfSlamError, InvalidObservation};
 use crate::models::{
     bearing_row, inverse_local_point, inverse_range_bearing, inverse_rssi_bearing, odometry_motion,
@@ -60,6 +62,9 @@ pub struct EkfSlam {
     slots: HashMap<BeaconId, usize>,
     ids: Vec<BeaconId>,
     pending: HashMap<BeaconId, PendingBeacon>,
+    /// Pose copies kept for pending views, in state order (after the beacons).
+    clones: Vec<u64>,
+    next_clone: u64,
     stats: FilterStats,
 }
 
@@ -98,6 +103,8 @@ impl EkfSlam {
             slots: HashMap::new(),
             ids: Vec::new(),
             pending: HashMap::new(),
+            clones: Vec::new(),
+            next_clone: 0,
             stats: FilterStats::default(),
         })
     }
@@ -137,7 +144,8 @@ impl EkfSlam {
         }
     }
 
-    /// Full state vector `[x, y, θ, b1x, b1y, …]` (m, rad).
+    /// Full state vector `[x, y, θ, b1x, b1y, …]` (m, rad), followed by the pose copies of
+    /// pending views (`x, y, θ` each, see [`crate::DelayedInit::view_poses_in_state`]).
     #[must_use]
     pub fn state(&self) -> &DVector<f64> {
         &self.x
@@ -159,6 +167,12 @@ impl EkfSlam {
     #[must_use]
     pub fn beacon_count(&self) -> usize {
         self.ids.len()
+    }
+
+    /// Pose copies currently kept in the state for pending views.
+    #[must_use]
+    pub fn view_pose_count(&self) -> usize {
+        self.clones.len()
     }
 
     /// Beacons that have views stored but are not yet mapped.
@@ -300,19 +314,79 @@ impl EkfSlam {
                 None => fresh.push(k),
             }
         }
+        // Views stored by this batch share one copy of the pose.
+        let mut batch_clone = None;
         for k in fresh {
             if let Some(obs) = observations.get(k) {
                 // A beacon may appear twice in one batch: the second one is then a known update.
                 let o = match self.slots.get(&obs.id).copied() {
                     Some(slot) => self.update_known(slot, obs),
-                    None => self.add_new(obs),
+                    None => self.add_new(obs, &mut batch_clone),
                 };
                 if let Some(s) = out.get_mut(k) {
                     *s = o;
                 }
             }
         }
+        self.drop_unused_clones();
         out
+    }
+
+    /// State index of pose copy `id`.
+    fn clone_index(&self, id: u64) -> Option<usize> {
+        let k = self.clones.iter().position(|&c| c == id)?;
+        Some(3 + 2 * self.ids.len() + 3 * k)
+    }
+
+    /// The current estimate of pose copy `id`.
+    fn clone_pose(&self, id: u64) -> Option<Vector3<f64>> {
+        let i = self.clone_index(id)?;
+        Some(Vector3::new(self.x[i], self.x[i + 1], self.x[i + 2]))
+    }
+
+    /// Appends a copy of the robot pose to the state (fully correlated with it).
+    fn push_clone(&mut self) -> u64 {
+        let n = self.x.len();
+        let rows = self.p.rows(0, 3).into_owned();
+        let prr = self.p.fixed_view::<3, 3>(0, 0).into_owned();
+        let old = std::mem::replace(&mut self.p, DMatrix::zeros(0, 0));
+        self.p = old.resize(n + 3, n + 3, 0.0);
+        self.p.view_mut((n, 0), (3, n)).copy_from(&rows);
+        self.p.view_mut((0, n), (n, 3)).copy_from(&rows.transpose());
+        self.p.fixed_view_mut::<3, 3>(n, n).copy_from(&prr);
+        let oldx = std::mem::replace(&mut self.x, DVector::zeros(0));
+        self.x = oldx.resize_vertically(n + 3, 0.0);
+        for k in 0..3 {
+            self.x[n + k] = self.x[k];
+        }
+        let id = self.next_clone;
+        self.next_clone += 1;
+        self.clones.push(id);
+        id
+    }
+
+    /// Marginalises out the pose copies no pending view refers to any more.
+    fn drop_unused_clones(&mut self) {
+        let used: HashSet<u64> = self
+            .pending
+            .values()
+            .flat_map(|p| p.views.iter().filter_map(|v| v.clone))
+            .collect();
+        let unused: Vec<u64> = self
+            .clones
+            .iter()
+            .copied()
+            .filter(|c| !used.contains(c))
+            .collect();
+        for id in unused {
+            if let Some(i) = self.clone_index(id) {
+                let old = std::mem::replace(&mut self.p, DMatrix::zeros(0, 0));
+                self.p = old.remove_rows(i, 3).remove_columns(i, 3);
+                let oldx = std::mem::replace(&mut self.x, DVector::zeros(0));
+                self.x = oldx.remove_rows(i, 3);
+                self.clones.retain(|&c| c != id);
+            }
+        }
     }
 
     fn scalars(
@@ -470,10 +544,15 @@ impl EkfSlam {
         ObservationOutcome::Updated { nis, dof: m }
     }
 
-    fn add_new(&mut self, obs: &BeaconObservation) -> ObservationOutcome {
+    fn add_new(
+        &mut self,
+        obs: &BeaconObservation,
+        batch_clone: &mut Option<u64>,
+    ) -> ObservationOutcome {
         let pose = self.pose_vec();
         let cfg = self.config;
-        if let (Some(r), Some(b)) = (obs.range, obs.bearing) {
+        let dc = cfg.delayed_init;
+        if let (Some(r), Some(b), false) = (obs.range, obs.bearing, dc.delay_range_bearing) {
             let (pos, gv, meas_cov) = match (r, cfg.rssi_handling) {
                 (
                     RangeReading::RssiDbm {
@@ -516,10 +595,15 @@ impl EkfSlam {
             self.augment(obs.id, &pos, &gv, &meas_cov);
             return ObservationOutcome::Added;
         }
-        let dc = cfg.delayed_init;
-        let entry = self.pending.entry(obs.id).or_default();
+        let clone = if dc.view_poses_in_state {
+            Some(*batch_clone.get_or_insert_with(|| self.push_clone()))
+        } else {
+            None
+        };
+        let mut entry = self.pending.remove(&obs.id).unwrap_or_default();
         entry.views.push_back(View {
             pose,
+            clone,
             range: obs.range,
             bearing: obs.bearing,
         });
@@ -527,22 +611,54 @@ impl EkfSlam {
             entry.views.pop_front();
         }
         self.stats.pending_views += 1;
-        let Some((pos, cov)) = triangulate(entry, &cfg) else {
+        let found = triangulate(&entry, &cfg, |v| {
+            v.clone.and_then(|c| self.clone_pose(c)).unwrap_or(v.pose)
+        });
+        let Some(tri) = found else {
+            self.pending.insert(obs.id, entry);
             return ObservationOutcome::Pending;
         };
-        self.pending.remove(&obs.id);
-        // Treat the triangulated point as a point known in the current robot frame: b = p + R(θ)l,
-        // l = R(θ)ᵀ(b − p), so that the new beacon gets full cross-covariances with the pose and map.
-        let (s, c) = pose.z.sin_cos();
-        let d = pos - Vector2::new(pose.x, pose.y);
-        let local = Vector2::new(c * d.x + s * d.y, -s * d.x + c * d.y);
-        let (_, gv, _) = inverse_local_point(&pose, &local);
-        self.augment(obs.id, &pos, &gv, &cov);
+        let clone_rows: Option<Vec<usize>> = entry
+            .views
+            .iter()
+            .map(|v| v.clone.and_then(|c| self.clone_index(c)))
+            .collect();
+        match clone_rows {
+            Some(rows) => self.augment_from_views(obs.id, &tri, &rows),
+            None => {
+                // Treat the triangulated point as a point known in the current robot frame:
+                // b = p + R(θ)l, l = R(θ)ᵀ(b − p), so that the new beacon gets full
+                // cross-covariances with the pose and map.
+                let pos = tri.position;
+                let (s, c) = pose.z.sin_cos();
+                let d = pos - Vector2::new(pose.x, pose.y);
+                let local = Vector2::new(c * d.x + s * d.y, -s * d.x + c * d.y);
+                let (_, gv, _) = inverse_local_point(&pose, &local);
+                self.augment(obs.id, &pos, &gv, &tri.cov);
+            }
+        }
         ObservationOutcome::Added
     }
 
+    /// Adds a beacon triangulated from views whose poses are copies in the state (rows
+    /// `rows[k]` for view k): with `J` the Jacobian of the position with respect to those
+    /// copies, `P_Lx = J P_{views,x}` for every state and `P_LL = J P_{views,views} Jᵀ + C`.
+    fn augment_from_views(&mut self, id: BeaconId, tri: &Triangulated, rows: &[usize]) {
+        let n = self.x.len();
+        let mut jp = Matrix2xX::zeros(n);
+        for (j, &r) in tri.d_view_pose.iter().zip(rows) {
+            jp += j * self.p.rows(r, 3);
+        }
+        let mut pll = tri.cov;
+        for (j, &r) in tri.d_view_pose.iter().zip(rows) {
+            pll += jp.columns(r, 3) * j.transpose();
+        }
+        let pll = (pll + pll.transpose()) / 2.0;
+        self.insert_beacon(id, &tri.position, &jp, &pll);
+    }
+
     /// Bailey-style augmentation: `P_LL = G_v P_vv G_vᵀ + C_z`, `P_Lx = G_v P_vx` for every
-    /// existing state `x` (pose and all beacons).
+    /// existing state `x` (pose, beacons and pose copies).
     fn augment(
         &mut self,
         id: BeaconId,
@@ -555,15 +671,37 @@ impl EkfSlam {
         let pvv = self.p.fixed_view::<3, 3>(0, 0).into_owned();
         let pll = gv * pvv * gv.transpose() + meas_cov;
         let pll = (pll + pll.transpose()) / 2.0;
+        self.insert_beacon(id, pos, &plx, &pll);
+    }
+
+    /// Inserts a beacon after the mapped ones (before any pose copies) with cross-covariance
+    /// `plx` (2×n, against the current state) and covariance `pll`.
+    fn insert_beacon(
+        &mut self,
+        id: BeaconId,
+        pos: &Vector2<f64>,
+        plx: &Matrix2xX<f64>,
+        pll: &Matrix2<f64>,
+    ) {
+        let n = self.x.len();
+        let at = 3 + 2 * self.ids.len();
         let old = std::mem::replace(&mut self.p, DMatrix::zeros(0, 0));
-        self.p = old.resize(n + 2, n + 2, 0.0);
-        self.p.view_mut((n, 0), (2, n)).copy_from(&plx);
-        self.p.view_mut((0, n), (n, 2)).copy_from(&plx.transpose());
-        self.p.fixed_view_mut::<2, 2>(n, n).copy_from(&pll);
+        let mut p = old.insert_rows(at, 2, 0.0).insert_columns(at, 2, 0.0);
+        // Old columns before `at` keep their index, the rest move by two.
+        for j in 0..n {
+            let nj = if j < at { j } else { j + 2 };
+            for r in 0..2 {
+                p[(at + r, nj)] = plx[(r, j)];
+                p[(nj, at + r)] = plx[(r, j)];
+            }
+        }
+        p.fixed_view_mut::<2, 2>(at, at).copy_from(pll);
+        self.p = p;
         let oldx = std::mem::replace(&mut self.x, DVector::zeros(0));
-        self.x = oldx.resize_vertically(n + 2, 0.0);
-        self.x[n] = pos.x;
-        self.x[n + 1] = pos.y;
+        let mut x = oldx.insert_rows(at, 2, 0.0);
+        x[at] = pos.x;
+        x[at + 1] = pos.y;
+        self.x = x;
         self.slots.insert(id, self.ids.len());
         self.ids.push(id);
         self.stats.beacons_added += 1;

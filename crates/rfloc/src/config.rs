@@ -291,6 +291,15 @@ pub struct EkfSlamSettings {
     /// this, metres.
     #[serde(default = "default_beacon_init_std")]
     pub beacon_init_max_std_m: f64,
+    /// The views of a beacon not yet mapped carry the sweep's RSSI (or range) as well as its
+    /// bearing, and the delayed initialisation triangulates from both (false: bearings only).
+    #[serde(default)]
+    pub beacon_init_with_range: bool,
+    /// Keep each view's robot pose in the filter state until the beacon is mapped, so it enters
+    /// the map with its cross-covariances to those poses (false: the views' poses are taken as
+    /// exact and the beacon is attached to the current pose).
+    #[serde(default)]
+    pub beacon_init_pose_copies: bool,
     /// Waypoint switching distance ρ_min, metres.
     #[serde(default = "default_waypoint_switch")]
     pub waypoint_switch_m: f64,
@@ -339,6 +348,8 @@ impl Default for EkfSlamSettings {
             rssi_sigma_db: default_rssi_sigma(),
             bearing_floor_deg: default_bearing_floor(),
             beacon_init_max_std_m: default_beacon_init_std(),
+            beacon_init_with_range: false,
+            beacon_init_pose_copies: false,
             waypoint_switch_m: default_waypoint_switch(),
             max_speed_mps: default_max_speed(),
             odometry_trans_per_m: default_odometry_trans(),

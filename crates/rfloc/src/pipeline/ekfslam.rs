@@ -113,6 +113,8 @@ impl EkfSlamPipeline {
             },
             delayed_init: DelayedInit {
                 max_std_m: s.beacon_init_max_std_m,
+                delay_range_bearing: s.beacon_init_with_range,
+                view_poses_in_state: s.beacon_init_pose_copies,
                 ..DelayedInit::default()
             },
             ..EkfSlamConfig::default()
@@ -276,7 +278,7 @@ impl EkfSlamPipeline {
 
     fn observation(&self, b: &SweptBeacon) -> BeaconObservation {
         let sigma_b = (b.bearing_variance_rad2.max(0.0) + self.bearing_floor_rad2).sqrt();
-        if self.ekf.beacon(b.id).is_none() {
+        if self.ekf.beacon(b.id).is_none() && !self.ekf.config().delayed_init.delay_range_bearing {
             return BeaconObservation::bearing_only(b.id, b.bearing_rad, sigma_b);
         }
         match self.measurement {

@@ -57,7 +57,10 @@ use std::path::Path;
 use std::sync::{Arc, Mutex};
 
 use anyhow::Context;
-use rfloc_bearing::{EstimatorConfig, PathLossModel, ScanConfig, ScanRunner, SweepPlanConfig};
+use rfloc_bearing::{
+    CosinePowerPattern, EstimatorConfig, GainPattern, PathLossModel, ScanConfig, ScanRunner,
+    SweepPlanConfig,
+};
 use rfloc_pose::{angle_diff, Pose2};
 use rfloc_sim::geometry::Point;
 use rfloc_sim::recorder::TrialRecorder;
@@ -103,7 +106,7 @@ const SUBSTEP_S: f64 = 0.01;
 const EMULATOR_TRACK_M: f64 = 2.0 / 5.6;
 /// Added in quadrature to every bearing σ from the sweep estimator, degrees (pattern
 /// mismatch).
-const BEARING_FLOOR_DEG: f64 = 3.0;
+const BEARING_FLOOR_DEG: f64 = 1.0;
 
 /// Runs one trial.
 pub async fn run_trial(
@@ -233,6 +236,10 @@ impl Mission {
                     shadowing_sigma_db: model.shadow_sigma_db,
                 },
                 rssi_noise_sigma_db: model.fast_sigma_db.max(0.5),
+                pattern: Some(GainPattern::CosinePower(CosinePowerPattern {
+                    exponent: model.pattern.exponent,
+                    back_lobe_db: model.pattern.back_lobe_db,
+                })),
                 ..EstimatorConfig::default()
             },
         };
@@ -254,6 +261,8 @@ impl Mission {
             rssi_sigma_db,
             bearing_floor_deg: BEARING_FLOOR_DEG,
             beacon_init_max_std_m: DELAYED_INIT_MAX_STD_M,
+            beacon_init_with_range: true,
+            beacon_init_pose_copies: true,
             waypoint_switch_m: scenario.spec.params.waypoint_switch_m.unwrap_or(0.3),
             wheel_slip: Some(WheelSlipSettings {
                 relative_sigma: slip,
@@ -420,6 +429,19 @@ impl Mission {
             used = swept.len(),
             "sweep"
         );
+        for (k, (id, p)) in self.beacons.iter().enumerate() {
+            if let Some(b) = self.pipeline.filter().beacon(*id) {
+                let e = (b.position.x - p.x).hypot(b.position.y - p.y);
+                let sd = b.covariance.trace().sqrt();
+                tracing::debug!(
+                    sweep = self.sweeps,
+                    beacon = k + 1,
+                    error_m = e,
+                    sd_m = sd,
+                    "map"
+                );
+            }
+        }
         Ok(swept)
     }
 
