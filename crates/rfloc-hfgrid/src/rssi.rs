@@ -3,6 +3,7 @@
 //! seed 002 Table 4 and its emulator table) is kept as a multi-modal likelihood rather than
 //! resolved by picking one distance.
 
+pub use rfloc_pose::normal_cdf;
 use serde::{Deserialize, Serialize};
 
 /// Largest RSSI value the reader reports.
@@ -81,23 +82,6 @@ fn bands_from_edges(edges: &[(f64, u8)]) -> Vec<RssiBand> {
         });
     }
     out
-}
-
-/// Standard normal CDF, from an erfc approximation with relative error < 1.2e-7.
-#[must_use]
-pub fn normal_cdf(z: f64) -> f64 {
-    let x = -z / std::f64::consts::SQRT_2;
-    let t = 1.0 / (1.0 + 0.5 * x.abs());
-    let poly = -x * x - 1.265_512_23
-        + t * (1.000_023_68
-            + t * (0.374_091_96
-                + t * (0.096_784_18
-                    + t * (-0.186_288_06
-                        + t * (0.278_868_07
-                            + t * (-1.135_203_98
-                                + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77))))))));
-    let erfc = t * poly.exp();
-    0.5 * if x >= 0.0 { erfc } else { 2.0 - erfc }
 }
 
 impl RssiModel {

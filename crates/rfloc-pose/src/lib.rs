@@ -9,8 +9,10 @@
 
 mod angle;
 mod estimate;
+mod normal;
 mod pose;
 
 pub use angle::{angle_diff, wrap_angle};
 pub use estimate::{EstimateMode, PoseEstimate};
+pub use normal::normal_cdf;
 pub use pose::Pose2;

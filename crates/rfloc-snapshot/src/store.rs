@@ -102,3 +102,49 @@ impl SnapshotDatabase {
         Ok(db)
     }
 }
+
+impl crate::tagmap::TagMap {
+    /// Saves the tag map as JSON, atomically (see the module documentation).
+    ///
+    /// # Errors
+    /// [`SnapshotError::Io`] or [`SnapshotError::Format`].
+    pub fn save(&self, path: &Path) -> Result<(), SnapshotError> {
+        let bytes = serde_json::to_vec(self).map_err(|source| SnapshotError::Format {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        write_atomic(path, |f| f.write_all(&bytes).map_err(io_err(path)))
+    }
+
+    /// Loads a map saved by [`crate::tagmap::TagMap::save`] and rebuilds its index.
+    ///
+    /// # Errors
+    /// [`SnapshotError::Io`], [`SnapshotError::Format`] for malformed or truncated JSON,
+    /// [`SnapshotError::InvalidModel`] for a tag with a non-finite position or a model without
+    /// coefficients.
+    pub fn load(path: &Path) -> Result<Self, SnapshotError> {
+        let bytes = fs::read(path).map_err(io_err(path))?;
+        let mut map: crate::tagmap::TagMap =
+            serde_json::from_slice(&bytes).map_err(|source| SnapshotError::Format {
+                path: path.to_path_buf(),
+                source,
+            })?;
+        if map.model.coeffs.is_empty() {
+            return Err(SnapshotError::InvalidModel(
+                "tag map: read model without coefficients".into(),
+            ));
+        }
+        if let Some(t) = map
+            .tags
+            .iter()
+            .find(|t| !(t.x.is_finite() && t.y.is_finite() && t.sigma.is_finite()))
+        {
+            return Err(SnapshotError::InvalidModel(format!(
+                "tag map: tag {} has a non-finite position",
+                t.id
+            )));
+        }
+        map.rebuild_index();
+        Ok(map)
+    }
+}

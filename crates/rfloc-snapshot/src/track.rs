@@ -21,6 +21,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::distance::{IndexedSnapshot, SnapshotDistance, TagIndex};
 use crate::snapshot::Snapshot;
+use crate::tagmap::TagMap;
 
 /// Every exploration snapshot with its pose: the fine localisation database.
 #[derive(Debug, Clone, Default)]
@@ -318,6 +319,89 @@ impl TrackFilter {
             {
                 *slot = fresh;
             }
+        }
+    }
+
+    /// Weighs the particles by a snapshot through the learned tag map ([`TagMap`]: each
+    /// particle scored by the reader's model against the mapped tag positions). The
+    /// fingerprints still propose poses: all particles at the first update (global
+    /// localisation), and before each update a fraction of them when the cloud explains the
+    /// snapshots worse than it used to (augmented MCL on the per-tag likelihood). An empty
+    /// snapshot, or one without a mapped tag, changes nothing.
+    pub fn update_with_map<R: Rng + ?Sized>(
+        &mut self,
+        tags: &TagMap,
+        proposals: &FingerprintMap,
+        snapshot: &Snapshot,
+        rng: &mut R,
+    ) {
+        let c = self.config;
+        let obs = tags.observe(snapshot);
+        if obs.mapped == 0 {
+            return;
+        }
+        let matches = proposals.matches(snapshot, c.neighbours, c.tau);
+        if !self.initialised || self.poses.is_empty() {
+            if matches.is_empty() {
+                return;
+            }
+            let n = c.particles.max(1);
+            self.poses = (0..n)
+                .filter_map(|_| self.draw_near(&matches, rng))
+                .collect();
+            let m = self.poses.len().max(1) as f64;
+            self.weights = vec![1.0 / m; self.poses.len()];
+            self.initialised = !self.poses.is_empty();
+        } else if !matches.is_empty() {
+            let deficit = if self.w_slow > 0.0 {
+                (1.0 - self.w_fast / self.w_slow).max(0.0)
+            } else {
+                0.0
+            };
+            let n = self.poses.len();
+            let k = (deficit.min(c.reset_fraction.clamp(0.0, 1.0)) * n as f64).round() as usize;
+            let uniform = 1.0 / n.max(1) as f64;
+            for _ in 0..k {
+                let i = rng.random_range(0..n.max(1));
+                if let Some(fresh) = self.draw_near(&matches, rng) {
+                    if let (Some(slot), Some(w)) = (self.poses.get_mut(i), self.weights.get_mut(i))
+                    {
+                        *slot = fresh;
+                        *w = uniform;
+                    }
+                }
+            }
+            normalise(&mut self.weights);
+        }
+        let scores: Vec<(f64, usize)> = self
+            .poses
+            .iter()
+            .map(|p| tags.log_likelihood(p, &obs))
+            .collect();
+        let best = scores.iter().map(|s| s.0).fold(f64::NEG_INFINITY, f64::max);
+        if !best.is_finite() {
+            return;
+        }
+        // How well the cloud explains the snapshot: weighted per-term likelihood.
+        let mut explained = 0.0;
+        for (w, (ll, terms)) in self.weights.iter_mut().zip(&scores) {
+            explained += *w * (ll / (*terms).max(1) as f64).exp();
+            *w *= (ll - best).exp();
+        }
+        if self.w_slow <= 0.0 {
+            self.w_slow = explained;
+            self.w_fast = explained;
+        } else {
+            self.w_slow += c.alpha_slow * (explained - self.w_slow);
+            self.w_fast += c.alpha_fast * (explained - self.w_fast);
+        }
+        if !normalise(&mut self.weights) {
+            let m = self.weights.len().max(1) as f64;
+            self.weights.iter_mut().for_each(|w| *w = 1.0 / m);
+        }
+        let ess = 1.0 / self.weights.iter().map(|w| w * w).sum::<f64>().max(1e-300);
+        if ess < 0.5 * self.weights.len() as f64 {
+            self.resample(rng);
         }
     }
 

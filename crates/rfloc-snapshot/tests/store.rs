@@ -140,3 +140,58 @@ fn config_hash_changes_with_config() {
     assert_eq!(a.hash(), LearnConfig::default().hash());
     assert_eq!(a.hash().len(), 16);
 }
+
+#[test]
+fn tag_map_saves_atomically_and_rejects_bad_files() {
+    let world = World::seed_world(5, 0.05);
+    let obs = explore(&world, 300, 0.25, 8);
+    let map = TagMap::learn(
+        obs.iter().map(|o| (&o.snapshot, o.pose)),
+        ReadModel::seed000(1000.0, 1),
+        TagMapConfig::default(),
+    );
+    assert!(!map.is_empty());
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("tag-map.json");
+    map.save(&path).unwrap();
+    let back = TagMap::load(&path).unwrap();
+    assert_eq!(back.len(), map.len());
+    for t in &map.tags {
+        let b = back.get(&t.id).unwrap();
+        assert!((b.x - t.x).abs() < 1e-9 && (b.y - t.y).abs() < 1e-9);
+    }
+    // The reloaded map scores a snapshot like the original (its index was rebuilt).
+    let o = &obs[150];
+    let (a, b) = (
+        map.log_likelihood(&o.pose, &map.observe(&o.snapshot)),
+        back.log_likelihood(&o.pose, &back.observe(&o.snapshot)),
+    );
+    assert_eq!(a.1, b.1);
+    assert!((a.0 - b.0).abs() < 1e-6 * a.0.abs().max(1.0));
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names.len(), 1, "{names:?}");
+    // Truncated JSON, a position that is not a number, a model without coefficients.
+    let bytes = std::fs::read(&path).unwrap();
+    std::fs::write(&path, &bytes[..bytes.len() / 2]).unwrap();
+    assert!(matches!(
+        TagMap::load(&path),
+        Err(SnapshotError::Format { .. })
+    ));
+    let mut v: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
+    v["tags"][0]["x"] = serde_json::Value::Null;
+    std::fs::write(&path, serde_json::to_vec(&v).unwrap()).unwrap();
+    assert!(matches!(
+        TagMap::load(&path),
+        Err(SnapshotError::Format { .. })
+    ));
+    let mut v: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
+    v["model"]["coeffs"] = serde_json::json!([]);
+    std::fs::write(&path, serde_json::to_vec(&v).unwrap()).unwrap();
+    assert!(matches!(
+        TagMap::load(&path),
+        Err(SnapshotError::InvalidModel(_))
+    ));
+}

@@ -242,13 +242,7 @@ fn main() -> ExitCode {
             trials,
         } => {
             init_logging("warn", "text");
-            run_async(scenario::run(
-                &path,
-                scenario::SimOptions {
-                    out,
-                    trials,
-                },
-            ))
+            run_async(scenario::run(&path, scenario::SimOptions { out, trials }))
         }
         Command::Watch {
             tcp,

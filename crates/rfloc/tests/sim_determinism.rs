@@ -192,7 +192,12 @@ fn seed000_reduced_runs_are_identical() {
     assert_same(
         &a,
         &b,
-        &["truth.csv", "estimate.csv", "navigation.csv", "snapshot-db.json"],
+        &[
+            "truth.csv",
+            "estimate.csv",
+            "navigation.csv",
+            "snapshot-db.json",
+        ],
     );
     eprintln!(
         "seed000 reduced: {} captures identical, {bytes} bytes",

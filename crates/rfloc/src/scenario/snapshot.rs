@@ -61,7 +61,8 @@ use rfloc_sim::Scenario;
 use rfloc_snapshot::{
     Action, ActionModel, ActionTable, CycleBreaker, ExplorationConfig, ExplorationInput,
     ExplorationPolicy, FilterConfig, FingerprintMap, LatticeConfig, LatticePlan, LearnConfig,
-    Observation, Snapshot, SnapshotDatabase, StateFilter, TagId, TrackConfig, TrackFilter,
+    Observation, ReadModel, Snapshot, SnapshotDatabase, StateFilter, TagId, TagMap, TagMapConfig,
+    TrackConfig, TrackFilter,
 };
 
 use super::SimOptions;
@@ -209,29 +210,48 @@ fn write_table_row(out: &Path, row: &TableRow) -> anyhow::Result<()> {
         .with_context(|| format!("writing {}", path.display()))
 }
 
-/// Track-filter settings compared by replaying each trial's navigation sequence.
-fn track_variants() -> Vec<(&'static str, TrackConfig)> {
-    let d = TrackConfig::default();
+/// Tag-map settings compared by replaying each trial's navigation sequence with the track
+/// filter.
+fn tag_map_variants() -> Vec<(&'static str, TagMapConfig)> {
+    let d = TagMapConfig::default();
     vec![
         ("default", d),
-        ("tau_0.1", TrackConfig { tau: 0.1, ..d }),
-        ("floor_0.1", TrackConfig { floor: 0.1, ..d }),
         (
-            "reset_0.05",
-            TrackConfig {
-                reset_fraction: 0.05,
+            "temperature_1",
+            TagMapConfig {
+                temperature: 1.0,
                 ..d
             },
         ),
-        ("sigma_0.3", TrackConfig { sigma_xy: 0.3, ..d }),
         (
-            "k_100",
-            TrackConfig {
-                neighbours: 100,
+            "temperature_4",
+            TagMapConfig {
+                temperature: 4.0,
+                ..d
+            },
+        ),
+        (
+            "map_sigma_400",
+            TagMapConfig {
+                map_sigma: 400.0,
                 ..d
             },
         ),
     ]
+}
+
+/// The reader model the robot localises with: seed 000's propagation fit (Table 3.2), with the
+/// scenario's threshold, read noise, dropout and antenna mounting taken as the robot's
+/// calibration of its reader.
+fn read_model(scenario: &Scenario) -> ReadModel {
+    let uhf = scenario.uhf_model();
+    ReadModel {
+        behind_attenuation: uhf.behind_attenuation,
+        read_sigma: uhf.noise_sigma,
+        dropout: uhf.dropout,
+        antenna_offset: uhf.antenna_offset,
+        ..ReadModel::seed000(uhf.threshold, READS_PER_STEP)
+    }
 }
 
 /// Planar distance of two poses.
@@ -305,20 +325,31 @@ fn replay_mean_error(
     errors.mean()
 }
 
-/// Mean position error of a track filter with `config` run again over the navigation
-/// sequence (same odometry increments and snapshots).
+/// Which measurement model a replayed track filter uses.
+enum TrackModel<'a> {
+    /// The fingerprint kernels alone.
+    Fingerprints,
+    /// The tag map (fingerprints only propose poses).
+    Map(&'a TagMap),
+}
+
+/// Mean position error of a track filter run again over the navigation sequence (same
+/// odometry increments and snapshots).
 fn replay_track_error(
     map: &FingerprintMap,
-    config: TrackConfig,
+    model: &TrackModel<'_>,
     sequence: &[(Pose2, Snapshot, Pose2)],
     seed: u64,
 ) -> Option<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let mut filter = TrackFilter::new(config);
+    let mut filter = TrackFilter::new(TrackConfig::default());
     let mut errors = Errors::default();
     for (delta, snapshot, truth) in sequence {
         filter.predict(delta, &mut rng);
-        filter.update(map, snapshot, &mut rng);
+        match model {
+            TrackModel::Fingerprints => filter.update(map, snapshot, &mut rng),
+            TrackModel::Map(tags) => filter.update_with_map(tags, map, snapshot, &mut rng),
+        }
         if let Some(e) = filter.estimate() {
             errors.push(dist(&e.pose, truth));
         }
@@ -471,6 +502,45 @@ pub async fn run_trial(
             .map(|(o, p)| (&o.snapshot, *p)),
         config.distance,
     );
+    // The tag map: every tag read often enough, placed where its reads and misses along the
+    // exploration path (odometry poses) put it; saved atomically and used from the reloaded
+    // copy.
+    let (map_samples, map_model) = (
+        by_truth
+            .iter()
+            .zip(&odom_poses)
+            .map(|(o, p)| (o.snapshot.clone(), *p))
+            .collect::<Vec<_>>(),
+        read_model(scenario),
+    );
+    let learned_tags = tokio::task::spawn_blocking(move || {
+        TagMap::learn(
+            map_samples.iter().map(|(s, p)| (s, *p)),
+            map_model,
+            TagMapConfig::default(),
+        )
+    })
+    .await
+    .map_err(|e| anyhow::anyhow!("tag mapping task failed: {e}"))?;
+    let tags_path = dir.join("tag-map.json");
+    learned_tags
+        .save(&tags_path)
+        .with_context(|| format!("saving {}", tags_path.display()))?;
+    let tag_map =
+        TagMap::load(&tags_path).with_context(|| format!("loading {}", tags_path.display()))?;
+    let tag_errors: Vec<f64> = tag_map
+        .tags
+        .iter()
+        .filter_map(|t| {
+            let hex = t.id.to_string();
+            scenario
+                .world
+                .uhf_tags
+                .iter()
+                .find(|w| w.epc.eq_ignore_ascii_case(&hex))
+                .map(|w| (t.x - w.position.x).hypot(t.y - w.position.y))
+        })
+        .collect();
     // The learned motion of each action: mean odometry increment of the steps that did not stall.
     let fallback = Action::ALL.map(|a| {
         let n = act.table.nominal(a);
@@ -538,7 +608,7 @@ pub async fn run_trial(
         let delta = odom.relative_to(&last_odom);
         track.predict(&delta, &mut rng);
         last_odom = odom;
-        track.update(&fingerprints, &snapshot, &mut rng);
+        track.update_with_map(&tag_map, &fingerprints, &snapshot, &mut rng);
         if let Some(a) = prev {
             filter.predict(&db, a);
             odom_filter.predict(&odom_db, a);
@@ -641,10 +711,59 @@ pub async fn run_trial(
             rec.metric(&format!("replay_tau_{tau}_mean_error_m"), m);
         }
     }
-    for (name, cfg) in track_variants() {
-        if let Some(m) = replay_track_error(&fingerprints, cfg, &track_replay, seed) {
-            rec.metric(&format!("track_replay_{name}_mean_error_m"), m);
+    if let Some(m) = replay_track_error(
+        &fingerprints,
+        &TrackModel::Fingerprints,
+        &track_replay,
+        seed,
+    ) {
+        rec.metric("track_replay_fingerprints_mean_error_m", m);
+    }
+    for (name, cfg) in tag_map_variants() {
+        let mut variant = tag_map.clone();
+        variant.config = cfg;
+        if let Some(m) = replay_track_error(
+            &fingerprints,
+            &TrackModel::Map(&variant),
+            &track_replay,
+            seed,
+        ) {
+            rec.metric(&format!("track_replay_map_{name}_mean_error_m"), m);
         }
+    }
+    // The same with a map learned by a miscalibrated reader model (mean RSS 15 % low, read σ
+    // 1.5 times the true one): how much localisation depends on the calibration.
+    let mut wrong = read_model(scenario);
+    wrong.coeffs.iter_mut().for_each(|c| *c *= 0.85);
+    wrong.read_sigma *= 1.5;
+    let miscalibrated = TagMap::learn(
+        by_truth
+            .iter()
+            .zip(&odom_poses)
+            .map(|(o, p)| (&o.snapshot, *p)),
+        wrong,
+        TagMapConfig::default(),
+    );
+    if let Some(m) = replay_track_error(
+        &fingerprints,
+        &TrackModel::Map(&miscalibrated),
+        &track_replay,
+        seed,
+    ) {
+        rec.metric("track_replay_map_miscalibrated_mean_error_m", m);
+    }
+    rec.metric("mapped_tags", tag_map.len() as f64);
+    if !tag_errors.is_empty() {
+        let mut sorted = tag_errors.clone();
+        sorted.sort_by(f64::total_cmp);
+        rec.metric(
+            "tag_map_median_error_m",
+            sorted.get(sorted.len() / 2).copied().unwrap_or(f64::NAN),
+        );
+        rec.metric(
+            "tag_map_mean_error_m",
+            tag_errors.iter().sum::<f64>() / tag_errors.len() as f64,
+        );
     }
     rec.metric("states", db.states.len() as f64);
     rec.metric("fingerprints", fingerprints.len() as f64);

@@ -23,8 +23,7 @@ use rfloc_alien::{
     AlienClient, AlienConfig, EmulatorOptions, ReaderEmulator, ReaderSetup, SnapshotReader,
 };
 use rfloc_aria::{
-    AriaClient, EmulatorConfig as RobotConfig, EmulatorHandle, MotionHook, RobotEmulator,
-    WheelSlip,
+    AriaClient, EmulatorConfig as RobotConfig, EmulatorHandle, MotionHook, RobotEmulator, WheelSlip,
 };
 use rfloc_pose::Pose2;
 use rfloc_sim::{Point, Scenario, SensorSuite, World};
