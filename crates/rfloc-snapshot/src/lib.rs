@@ -29,6 +29,7 @@ pub mod filter;
 pub mod lattice;
 pub mod navigate;
 pub mod store;
+pub mod survey;
 pub mod tagmap;
 pub mod track;
 
@@ -38,5 +39,6 @@ pub use database::{
 pub use filter::{FilterConfig, StateFilter};
 pub use lattice::{ActionModel, LatticeConfig, LatticePlan};
 pub use navigate::{NavCommand, NavReason, Navigator, NavigatorConfig, Plan, PlanConfig};
+pub use survey::{Survey, SurveySample, SURVEY_FORMAT_VERSION};
 pub use tagmap::{MapObservation, MappedTag, ReadModel, TagMap, TagMapConfig};
 pub use track::{FingerprintMap, TrackConfig, TrackEstimate, TrackFilter};

@@ -148,3 +148,46 @@ impl crate::tagmap::TagMap {
         Ok(map)
     }
 }
+
+impl crate::survey::Survey {
+    /// Saves the survey as JSON, atomically (see the module documentation).
+    ///
+    /// # Errors
+    /// [`SnapshotError::Io`] or [`SnapshotError::Format`].
+    pub fn save(&self, path: &Path) -> Result<(), SnapshotError> {
+        let bytes = serde_json::to_vec(self).map_err(|source| SnapshotError::Format {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        write_atomic(path, |f| f.write_all(&bytes).map_err(io_err(path)))
+    }
+
+    /// Loads a survey saved by [`crate::survey::Survey::save`].
+    ///
+    /// # Errors
+    /// [`SnapshotError::Io`], [`SnapshotError::Format`] for malformed or truncated JSON,
+    /// [`SnapshotError::Version`] for another layout version, [`SnapshotError::InvalidModel`]
+    /// for a pose that is not finite.
+    pub fn load(path: &Path) -> Result<Self, SnapshotError> {
+        let bytes = fs::read(path).map_err(io_err(path))?;
+        let survey: crate::survey::Survey =
+            serde_json::from_slice(&bytes).map_err(|source| SnapshotError::Format {
+                path: path.to_path_buf(),
+                source,
+            })?;
+        if survey.format_version != crate::survey::SURVEY_FORMAT_VERSION {
+            return Err(SnapshotError::Version {
+                found: survey.format_version,
+                expected: crate::survey::SURVEY_FORMAT_VERSION,
+            });
+        }
+        if let Some(i) = survey.samples.iter().position(|s| {
+            !(s.pose.x.is_finite() && s.pose.y.is_finite() && s.pose.theta.is_finite())
+        }) {
+            return Err(SnapshotError::InvalidModel(format!(
+                "survey sample {i} has a non-finite pose"
+            )));
+        }
+        Ok(survey)
+    }
+}

@@ -160,6 +160,8 @@ pub struct TrackEstimate {
     pub spread: f64,
     /// Fraction of the weight within the estimate radius (1 = one tight mode).
     pub mass: f64,
+    /// Weighted covariance over `(x, y, θ)` of the particles within the estimate radius.
+    pub covariance: nalgebra::Matrix3<f64>,
 }
 
 /// Particle filter over `(x, y, θ)` with odometry prediction and fingerprint updates.
@@ -483,16 +485,20 @@ impl TrackFilter {
         }
         let (mass, theta) = result?;
         let mut var = 0.0;
+        let mut cov = nalgebra::Matrix3::<f64>::zeros();
         for (p, w) in self.poses.iter().zip(&self.weights) {
             let d2 = (p.x - cx).powi(2) + (p.y - cy).powi(2);
             if d2 <= r2 {
                 var += w * d2;
+                let e = nalgebra::Vector3::new(p.x - cx, p.y - cy, angle_diff(p.theta, theta));
+                cov += *w * e * e.transpose();
             }
         }
         Some(TrackEstimate {
             pose: Pose2::new(cx, cy, theta),
             spread: (var / mass).sqrt(),
             mass,
+            covariance: cov / mass,
         })
     }
 }

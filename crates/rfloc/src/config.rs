@@ -404,7 +404,8 @@ fn default_step() -> f64 {
 }
 
 /// Parameters of the UHF snapshot pipeline (seed 000).
-// Validated now; read by the device task / pipeline once it is wired into `rfloc run`.
+// `clustering` and `states` describe how the database was learned; they are validated, and
+// the learner (`rfloc sim`) is where they act.
 #[allow(dead_code)]
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -412,6 +413,16 @@ pub struct SnapshotSettings {
     /// Learned database (states, transition matrices), relative to `[state] dir`.
     #[serde(default = "default_database")]
     pub database: PathBuf,
+    /// Exploration survey (snapshots with odometry poses), relative to `[state] dir`. With
+    /// `tag_map`, the pipeline localises on the tag map instead of the database.
+    #[serde(default)]
+    pub survey: Option<PathBuf>,
+    /// Learned tag positions with their reader model, relative to `[state] dir`.
+    #[serde(default)]
+    pub tag_map: Option<PathBuf>,
+    /// Seed of the tag-map particle filter's random draws (replays repeat exactly).
+    #[serde(default)]
+    pub seed: u64,
     /// `kmedoids` or `threshold`.
     #[serde(default = "default_clustering")]
     pub clustering: String,
@@ -807,6 +818,21 @@ impl RobotConfig {
                     format!("{:?} is not kmedoids or threshold", s.clustering),
                 ));
             }
+            match (&s.survey, &s.tag_map) {
+                (Some(_), None) => {
+                    return Err(err(
+                        "estimator.survey",
+                        "needs estimator.tag_map as well (the tag map localises, the survey proposes poses)".into(),
+                    ))
+                }
+                (None, Some(_)) => {
+                    return Err(err(
+                        "estimator.tag_map",
+                        "needs estimator.survey as well (the tag map localises, the survey proposes poses)".into(),
+                    ))
+                }
+                _ => {}
+            }
         }
         if !matches!(self.log.format.as_str(), "text" | "full") {
             return Err(err(
@@ -1029,6 +1055,30 @@ pipeline = "hfgrid"
         let e = cfg.check(&text, "bad.toml", None, true).unwrap_err();
         assert_eq!(e.line, Some(7));
         assert!(e.to_string().contains("/dev/rfloc-does-not-exist"), "{e}");
+    }
+
+    #[test]
+    fn a_survey_without_a_tag_map_names_the_key_and_line() {
+        let text = format!(
+            "{}\n[[device]]\nname = \"base\"\nlink = {{ kind = \"tcp\", address = \"127.0.0.1:9001\" }}\n[device.driver]\nkind = \"aria\"\n",
+            GOOD.replace("kind = \"kts\"", "kind = \"alien\"")
+                .replace(
+                    "pipeline = \"hfgrid\"",
+                    "pipeline = \"snapshot\"\nsurvey = \"survey.json\""
+                )
+        );
+        let cfg = RobotConfig::parse(&text, "uhf.toml").unwrap();
+        let e = cfg.check(&text, "uhf.toml", None, false).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("estimator.survey"), "{e}");
+        assert!(e.line.is_some(), "{e}");
+        assert!(e.to_string().starts_with("uhf.toml:"), "{e}");
+        assert!(e.to_string().contains("tag_map"), "{e}");
+        let both = text.replace(
+            "survey = \"survey.json\"",
+            "survey = \"survey.json\"\ntag_map = \"tag-map.json\"",
+        );
+        let cfg = RobotConfig::parse(&both, "uhf.toml").unwrap();
+        cfg.check(&both, "uhf.toml", None, false).unwrap();
     }
 
     #[test]

@@ -157,3 +157,189 @@ dir = "{}"
     );
     drop(slave);
 }
+
+/// Tags at seeded random places in a 4 m × 4 m room.
+fn room_tags() -> Vec<(f64, f64)> {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(21);
+    (0..250)
+        .map(|_| (4.0 * rng.random::<f64>(), 4.0 * rng.random::<f64>()))
+        .collect()
+}
+
+fn room_tag_id(i: usize) -> Vec<u8> {
+    vec![0xE2, 0x00, (i >> 8) as u8, (i & 0xff) as u8]
+}
+
+/// What the reader sees from `pose` under `model`, with its read noise.
+fn room_read(
+    model: &rfloc_snapshot::ReadModel,
+    tags: &[(f64, f64)],
+    pose: &Pose2,
+    rng: &mut rand_chacha::ChaCha8Rng,
+) -> Vec<(Vec<u8>, f64)> {
+    use rand::Rng;
+    let a = model.antenna(pose);
+    let (sin, cos) = a.theta.sin_cos();
+    let mut out = Vec::new();
+    for (i, (x, y)) in tags.iter().enumerate() {
+        let (wx, wy) = (x - a.x, y - a.y);
+        let m = model.mean_rss(cos * wx + sin * wy, -sin * wx + cos * wy);
+        let (u1, u2): (f64, f64) = (rng.random::<f64>().max(1e-12), rng.random());
+        let r = m + model.read_sigma * (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
+        if r >= model.threshold && rng.random::<f64>() >= model.dropout {
+            out.push((room_tag_id(i), r));
+        }
+    }
+    out
+}
+
+async fn wait_pose_close<R: tokio::io::AsyncBufRead + Unpin>(
+    lines: &mut tokio::io::Lines<R>,
+    truth: &Pose2,
+) -> serde_json::Value {
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(30);
+    let mut last = String::new();
+    loop {
+        let line = tokio::time::timeout_at(deadline, lines.next_line())
+            .await
+            .unwrap_or_else(|_| panic!("no fix near {truth:?}; last: {last}"))
+            .unwrap()
+            .expect("stream ended");
+        let v: serde_json::Value = serde_json::from_str(&line).unwrap();
+        if v["class"] == "POSE" && v["source"] == "snapshot" {
+            let (px, py) = (v["x"].as_f64().unwrap(), v["y"].as_f64().unwrap());
+            let heading = v["yaw"].as_f64().unwrap();
+            let dh = rfloc_pose::angle_diff(heading, truth.theta).abs();
+            if (px - truth.x).hypot(py - truth.y) < 0.15 && dh < 0.2 && v["mode"] == "fix" {
+                return v;
+            }
+            last = line;
+        }
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn uhf_daemon_localises_on_the_tag_map_and_recovers_from_a_kidnap() {
+    use rand::{Rng, SeedableRng};
+    let dir = tempfile::tempdir().unwrap();
+    let model = rfloc_snapshot::ReadModel::seed000(1000.0, 2);
+    let tags = room_tags();
+    // The survey an exploration run would have left: 500 places, all headings.
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(22);
+    let samples: Vec<(Snapshot, Pose2)> = (0..500)
+        .map(|_| {
+            let p = Pose2::new(
+                0.2 + 3.6 * rng.random::<f64>(),
+                0.2 + 3.6 * rng.random::<f64>(),
+                std::f64::consts::TAU * rng.random::<f64>(),
+            );
+            let s = Snapshot::from_reads(
+                room_read(&model, &tags, &p, &mut rng)
+                    .into_iter()
+                    .map(|(id, r)| (TagId::new(id), r)),
+            );
+            (s, p)
+        })
+        .collect();
+    let survey = rfloc_snapshot::Survey::new(samples.iter().map(|(s, p)| (s, *p)));
+    survey.save(&dir.path().join("survey.json")).unwrap();
+    rfloc_snapshot::TagMap::learn(
+        survey.pairs(),
+        model.clone(),
+        rfloc_snapshot::TagMapConfig::default(),
+    )
+    .save(&dir.path().join("tag-map.json"))
+    .unwrap();
+    std::fs::write(dir.path().join("alien.pw"), format!("{SECRET}\n")).unwrap();
+
+    // The robot stands still; the reader sees the room from `truth`.
+    let (master, slave) = SerialStream::pair().unwrap();
+    let base_path = slave.name().unwrap();
+    let mut robot = RobotEmulator::new(RobotConfig::default());
+    tokio::spawn(async move {
+        let _ = robot.serve(master).await;
+    });
+    let a = Pose2::new(1.2, 2.5, 0.6);
+    let b = Pose2::new(3.0, 1.0, -2.2);
+    let truth = Arc::new(Mutex::new(a));
+    let field_truth = Arc::clone(&truth);
+    let field_rng = Mutex::new(rand_chacha::ChaCha8Rng::seed_from_u64(23));
+    let field = Arc::new(move || {
+        let pose = *field_truth.lock().unwrap();
+        room_read(&model, &tags, &pose, &mut field_rng.lock().unwrap())
+    });
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let reader_addr = listener.local_addr().unwrap();
+    let options = EmulatorOptions {
+        password: SECRET.into(),
+        ..EmulatorOptions::default()
+    };
+    tokio::spawn(async move {
+        let _ = ReaderEmulator::new(field, options)
+            .serve_listener(listener)
+            .await;
+    });
+
+    let pose_port = common::free_port();
+    let cfg = dir.path().join("robot.toml");
+    std::fs::write(
+        &cfg,
+        format!(
+            r#"[robot]
+name = "uhf-tagmap-e2e"
+
+[[device]]
+name = "base"
+link = {{ kind = "serial", path = "{base_path}", baud = 9600 }}
+[device.driver]
+kind = "aria"
+
+[[device]]
+name = "uhf"
+link = {{ kind = "tcp", address = "{reader_addr}" }}
+[device.driver]
+kind = "alien"
+password_file = "alien.pw"
+reads_per_snapshot = 2
+
+[estimator]
+pipeline = "snapshot"
+survey = "survey.json"
+tag_map = "tag-map.json"
+
+[pose]
+tcp = "127.0.0.1:{pose_port}"
+
+[state]
+dir = "{}"
+"#,
+            dir.path().display()
+        ),
+    )
+    .unwrap();
+
+    let daemon = common::Daemon::start(&cfg, "debug");
+    let mut lines = daemon.pose_lines(pose_port).await;
+    let at_a = wait_pose_close(&mut lines, &a).await;
+    // The covariance is the particle cloud's: positive, below the fix's spread bound.
+    let cov: Vec<f64> = at_a["cov"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert_eq!(cov.len(), 36, "{at_a}");
+    assert!(
+        cov[0] > 0.0 && cov[0] < 0.09 && cov[7] > 0.0 && cov[7] < 0.09,
+        "{at_a}"
+    );
+    // Kidnapped: the filter finds the robot again from the survey's proposals.
+    *truth.lock().unwrap() = b;
+    wait_pose_close(&mut lines, &b).await;
+
+    let (status, log) = daemon.terminate().await;
+    assert!(status.success(), "{log}");
+    assert!(log.contains("tag map loaded"), "{log}");
+    drop(slave);
+}

@@ -1,22 +1,91 @@
-//! UHF snapshot pipeline (seed 000) on a live robot: a histogram filter over the states of a
-//! learned database, updated with each averaged snapshot from the reader.
+//! UHF snapshot pipeline (seed 000) on a live robot.
 //!
-//! The database (states, their positions, transition matrices) is learned by an exploration
-//! run (`rfloc sim` writes one per trial) and loaded from `[state] dir`. Without it the
-//! pipeline publishes nothing and says why once.
+//! Two localisers, chosen by what the state folder holds:
+//! - **tag map** (`[estimator] survey` and `tag_map` set and loadable): a particle filter over
+//!   `(x, y, θ)` moved by the base's odometry between snapshots and weighed by each snapshot
+//!   against the learned tag positions under the reader model stored with the map; the survey's
+//!   fingerprints propose poses (global localisation at the first snapshot, recovery after a
+//!   kidnap). The pose is the local mean of the heaviest mode with the particles' covariance;
+//!   `fix` when that mode holds most of the weight and is tight, `degraded` otherwise.
+//! - **cluster database** (`[estimator] database`, the seed's method): a histogram filter over
+//!   the learned states, updated with each snapshot.
+//!
+//! All files come from an exploration run (`rfloc sim` writes them per trial) and are read
+//! from `[state] dir`. Without any, the pipeline publishes nothing and says why once.
 
 use std::path::{Path, PathBuf};
 
-use rfloc_pose::PoseEstimate;
-use rfloc_snapshot::{FilterConfig, Snapshot, SnapshotDatabase, StateFilter, TagId};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rfloc_pose::{EstimateMode, Pose2, PoseEstimate};
+use rfloc_snapshot::{
+    FilterConfig, FingerprintMap, LearnConfig, Snapshot, SnapshotDatabase, StateFilter, Survey,
+    TagId, TagMap, TrackConfig, TrackFilter,
+};
 
 use crate::config::SnapshotSettings;
 use crate::events::DeviceEvent;
 use crate::pipeline::Pipeline;
 
-/// Histogram filter over learned states.
+/// A tag-map pose is a `fix` when the heaviest mode holds this much of the weight ...
+const FIX_MASS: f64 = 0.8;
+/// ... and its particles' RMS distance from the estimate is at most this, metres.
+const FIX_SPREAD_M: f64 = 0.3;
+/// An odometry step longer than this between two snapshots is a rebase (the base reconnected
+/// and its odometry restarted), not motion, metres.
+const MAX_ODOMETRY_STEP_M: f64 = 2.0;
+
+/// The particle filter on the tag map.
+struct MapLocaliser {
+    tags: TagMap,
+    prints: FingerprintMap,
+    filter: TrackFilter,
+    rng: ChaCha8Rng,
+    /// The base's latest odometry pose, and the one at the last snapshot.
+    odometry: Option<Pose2>,
+    at_last_snapshot: Option<Pose2>,
+}
+
+impl MapLocaliser {
+    fn on_snapshot(&mut self, t: f64, snapshot: &Snapshot) -> Option<PoseEstimate> {
+        if let (Some(now), Some(before)) = (self.odometry, self.at_last_snapshot) {
+            let step = now.relative_to(&before);
+            if step.x.hypot(step.y) <= MAX_ODOMETRY_STEP_M {
+                self.filter.predict(&step, &mut self.rng);
+            } else {
+                tracing::warn!(
+                    step_m = step.x.hypot(step.y),
+                    "odometry jumped between snapshots: taken as a rebase"
+                );
+            }
+        }
+        self.at_last_snapshot = self.odometry;
+        self.filter
+            .update_with_map(&self.tags, &self.prints, snapshot, &mut self.rng);
+        let e = self.filter.estimate()?;
+        let mode = if e.mass >= FIX_MASS && e.spread <= FIX_SPREAD_M {
+            EstimateMode::Fix
+        } else {
+            EstimateMode::Degraded
+        };
+        Some(PoseEstimate {
+            time: t,
+            pose: e.pose,
+            covariance: e.covariance,
+            mode,
+            source: "snapshot".into(),
+        })
+    }
+}
+
+enum Localiser {
+    Map(Box<MapLocaliser>),
+    Clusters(Box<(SnapshotDatabase, StateFilter)>),
+}
+
+/// Snapshot localisation on the learned state.
 pub struct SnapshotPipeline {
-    learned: Option<(SnapshotDatabase, StateFilter)>,
+    localiser: Option<Localiser>,
     path: PathBuf,
     warned: bool,
 }
@@ -25,24 +94,86 @@ impl std::fmt::Debug for SnapshotPipeline {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("SnapshotPipeline")
             .field("path", &self.path)
-            .field("loaded", &self.learned.is_some())
+            .field(
+                "localiser",
+                &match &self.localiser {
+                    Some(Localiser::Map(_)) => "tag map",
+                    Some(Localiser::Clusters(_)) => "cluster database",
+                    None => "none",
+                },
+            )
             .finish()
     }
 }
 
+/// `path` relative to the state folder unless absolute.
+fn in_state_dir(path: &Path, state_dir: Option<&Path>) -> PathBuf {
+    match state_dir {
+        Some(dir) if path.is_relative() => dir.join(path),
+        _ => path.to_path_buf(),
+    }
+}
+
+/// The tag-map localiser, when both of its files are configured and load.
+fn load_map_localiser(
+    settings: &SnapshotSettings,
+    state_dir: Option<&Path>,
+) -> Option<MapLocaliser> {
+    let (survey, tag_map) = (settings.survey.as_ref()?, settings.tag_map.as_ref()?);
+    let (survey_path, map_path) = (
+        in_state_dir(survey, state_dir),
+        in_state_dir(tag_map, state_dir),
+    );
+    let survey = match Survey::load(&survey_path) {
+        Ok(s) => s,
+        Err(e) => {
+            tracing::error!(path = %survey_path.display(), error = %e, "survey not loaded");
+            return None;
+        }
+    };
+    let tags = match TagMap::load(&map_path) {
+        Ok(m) => m,
+        Err(e) => {
+            tracing::error!(path = %map_path.display(), error = %e, "tag map not loaded");
+            return None;
+        }
+    };
+    let prints = survey.fingerprints(LearnConfig::default().distance);
+    tracing::info!(
+        survey = %survey_path.display(),
+        tag_map = %map_path.display(),
+        fingerprints = prints.len(),
+        tags = tags.len(),
+        "tag map loaded"
+    );
+    Some(MapLocaliser {
+        tags,
+        prints,
+        filter: TrackFilter::new(TrackConfig::default()),
+        rng: ChaCha8Rng::seed_from_u64(settings.seed),
+        odometry: None,
+        at_last_snapshot: None,
+    })
+}
+
 impl SnapshotPipeline {
-    /// Loads the database named in the settings (relative paths from `state_dir`).
+    /// Loads the learned files named in the settings (relative paths from `state_dir`): the
+    /// survey and tag map when both are set, the cluster database otherwise.
     #[must_use]
     pub fn new(settings: &SnapshotSettings, state_dir: Option<&Path>) -> Self {
-        let path = match state_dir {
-            Some(dir) if settings.database.is_relative() => dir.join(&settings.database),
-            _ => settings.database.clone(),
-        };
-        let learned = match SnapshotDatabase::load(&path) {
+        let path = in_state_dir(&settings.database, state_dir);
+        if let Some(map) = load_map_localiser(settings, state_dir) {
+            return Self {
+                localiser: Some(Localiser::Map(Box::new(map))),
+                path,
+                warned: false,
+            };
+        }
+        let localiser = match SnapshotDatabase::load(&path) {
             Ok(db) => {
                 tracing::info!(path = %path.display(), states = db.state_count(), "learned snapshot database loaded");
                 let filter = StateFilter::new(&db, FilterConfig::default());
-                Some((db, filter))
+                Some(Localiser::Clusters(Box::new((db, filter))))
             }
             Err(e) => {
                 tracing::error!(path = %path.display(), error = %e, "no learned snapshot database");
@@ -50,7 +181,7 @@ impl SnapshotPipeline {
             }
         };
         Self {
-            learned,
+            localiser,
             path,
             warned: false,
         }
@@ -63,13 +194,20 @@ impl Pipeline for SnapshotPipeline {
     }
 
     fn handle(&mut self, event: &DeviceEvent) -> Option<PoseEstimate> {
-        let DeviceEvent::UhfSnapshot { t, tags, .. } = event else {
-            return None;
+        let (t, tags) = match event {
+            DeviceEvent::UhfSnapshot { t, tags, .. } => (*t, tags),
+            DeviceEvent::Odometry { pose, .. } => {
+                if let Some(Localiser::Map(m)) = &mut self.localiser {
+                    m.odometry = Some(*pose);
+                }
+                return None;
+            }
+            _ => return None,
         };
-        let Some((db, filter)) = &mut self.learned else {
+        let Some(localiser) = &mut self.localiser else {
             if !self.warned {
                 self.warned = true;
-                tracing::error!(path = %self.path.display(), "snapshots arrive but there is no learned database: no poses");
+                tracing::error!(path = %self.path.display(), "snapshots arrive but nothing is learned: no poses");
             }
             return None;
         };
@@ -77,9 +215,15 @@ impl Pipeline for SnapshotPipeline {
             tags.iter()
                 .filter_map(|(id, rss)| Some((TagId::from_hex(id)?, *rss))),
         );
-        filter.update(db, &snapshot);
-        let mut est = filter.estimate(db, *t);
-        est.source = "snapshot".into();
-        Some(est)
+        match localiser {
+            Localiser::Map(m) => m.on_snapshot(t, &snapshot),
+            Localiser::Clusters(c) => {
+                let (db, filter) = &mut **c;
+                filter.update(db, &snapshot);
+                let mut est = filter.estimate(db, t);
+                est.source = "snapshot".into();
+                Some(est)
+            }
+        }
     }
 }

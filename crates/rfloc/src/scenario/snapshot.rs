@@ -50,6 +50,7 @@
 //! two runs write identical captures, truth and estimates (`tests/sim_determinism.rs`).
 
 use std::path::Path;
+use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::Context;
@@ -61,7 +62,7 @@ use rfloc_sim::Scenario;
 use rfloc_snapshot::{
     Action, ActionModel, ActionTable, CycleBreaker, ExplorationConfig, ExplorationInput,
     ExplorationPolicy, FilterConfig, FingerprintMap, LatticeConfig, LatticePlan, LearnConfig,
-    Observation, ReadModel, Snapshot, SnapshotDatabase, StateFilter, TagId, TagMap, TagMapConfig,
+    Observation, ReadModel, Snapshot, SnapshotDatabase, StateFilter, Survey, TagId, TagMap, TagMapConfig,
     TrackConfig, TrackFilter,
 };
 
@@ -494,31 +495,30 @@ pub async fn run_trial(
         .save(&dir.join("snapshot-db-odometry.json"))
         .context("saving the odometry database")?;
 
-    // The fine localisation map: every exploration snapshot at the robot's odometry pose.
-    let fingerprints = FingerprintMap::new(
+    // The survey: every exploration snapshot at the robot's odometry pose, saved atomically
+    // (a live robot localises from it and the tag map: `[estimator] survey`, `tag_map`); the
+    // fingerprints and the tag map are learned from the reloaded copy.
+    let survey_path = dir.join("survey.json");
+    Survey::new(
         by_truth
             .iter()
             .zip(&odom_poses)
             .map(|(o, p)| (&o.snapshot, *p)),
-        config.distance,
+    )
+    .save(&survey_path)
+    .with_context(|| format!("saving {}", survey_path.display()))?;
+    let survey = Arc::new(
+        Survey::load(&survey_path)
+            .with_context(|| format!("loading {}", survey_path.display()))?,
     );
+    // The fine localisation map: the survey's snapshots as fingerprints.
+    let fingerprints = survey.fingerprints(config.distance);
     // The tag map: every tag read often enough, placed where its reads and misses along the
     // exploration path (odometry poses) put it; saved atomically and used from the reloaded
     // copy.
-    let (map_samples, map_model) = (
-        by_truth
-            .iter()
-            .zip(&odom_poses)
-            .map(|(o, p)| (o.snapshot.clone(), *p))
-            .collect::<Vec<_>>(),
-        read_model(scenario),
-    );
+    let (map_samples, map_model) = (Arc::clone(&survey), read_model(scenario));
     let learned_tags = tokio::task::spawn_blocking(move || {
-        TagMap::learn(
-            map_samples.iter().map(|(s, p)| (s, *p)),
-            map_model,
-            TagMapConfig::default(),
-        )
+        TagMap::learn(map_samples.pairs(), map_model, TagMapConfig::default())
     })
     .await
     .map_err(|e| anyhow::anyhow!("tag mapping task failed: {e}"))?;
@@ -736,14 +736,7 @@ pub async fn run_trial(
     let mut wrong = read_model(scenario);
     wrong.coeffs.iter_mut().for_each(|c| *c *= 0.85);
     wrong.read_sigma *= 1.5;
-    let miscalibrated = TagMap::learn(
-        by_truth
-            .iter()
-            .zip(&odom_poses)
-            .map(|(o, p)| (&o.snapshot, *p)),
-        wrong,
-        TagMapConfig::default(),
-    );
+    let miscalibrated = TagMap::learn(survey.pairs(), wrong, TagMapConfig::default());
     if let Some(m) = replay_track_error(
         &fingerprints,
         &TrackModel::Map(&miscalibrated),
