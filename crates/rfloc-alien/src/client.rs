@@ -9,12 +9,12 @@ use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::time::Instant;
 use tracing::Instrument;
 
-use crate::custom_format::CustomFormat;
 use crate::error::{AlienError, SessionEnd};
+use crate::format_tracker::FormatTracker;
 use crate::framing::{Frame, Prompt, ReplyFramer};
 use crate::reader_time::format_reader_time;
 use crate::reply::{parse_reply, session_end, Reply};
-use crate::setup::{split_set, ReaderSetup};
+use crate::setup::ReaderSetup;
 use crate::snapshot::{RssiMeaning, Snapshot, SnapshotReader};
 use crate::taglist::{MalformedTagLine, TagListFormat, TagRead};
 
@@ -118,9 +118,7 @@ pub struct AlienClient<T> {
     framer: ReplyFramer,
     frames: VecDeque<Frame>,
     config: AlienConfig,
-    format: TagListFormat,
-    /// Last `TagListCustomFormat` set, used when `TagListFormat = Custom` follows.
-    pending_custom: Option<CustomFormat>,
+    format: FormatTracker,
     clock: SharedClock,
     stats: AlienStats,
     last_io: Instant,
@@ -145,8 +143,7 @@ where
             framer: ReplyFramer::new(),
             frames: VecDeque::new(),
             config,
-            format: TagListFormat::Text,
-            pending_custom: None,
+            format: FormatTracker::default(),
             clock,
             stats: AlienStats::default(),
             last_io: Instant::now(),
@@ -170,12 +167,12 @@ where
     /// The TagList format the client parses with (follows `TagListFormat`/`…CustomFormat` sets).
     #[must_use]
     pub fn format(&self) -> &TagListFormat {
-        &self.format
+        self.format.format()
     }
 
     /// Sets the TagList format the client parses with, without telling the reader.
     pub fn set_format(&mut self, format: TagListFormat) {
-        self.format = format;
+        self.format.set_format(format);
     }
 
     async fn next_frame(&mut self, timeout: Duration, what: &str) -> Result<Frame, AlienError> {
@@ -330,32 +327,8 @@ where
                 text,
             });
         }
-        if let Some((k, v)) = split_set(cmd) {
-            self.track_format(k, v)?;
-        }
+        self.format.observe(cmd)?;
         Ok(body)
-    }
-
-    fn track_format(&mut self, key: &str, value: &str) -> Result<(), AlienError> {
-        if key.eq_ignore_ascii_case("TagListCustomFormat") {
-            let f = CustomFormat::compile(value)?;
-            if matches!(self.format, TagListFormat::Custom(_)) {
-                self.format = TagListFormat::Custom(f.clone());
-            }
-            self.pending_custom = Some(f);
-        } else if key.eq_ignore_ascii_case("TagListFormat") {
-            self.format = match value.to_ascii_lowercase().as_str() {
-                "text" => TagListFormat::Text,
-                "terse" => TagListFormat::Terse,
-                "xml" => TagListFormat::Xml,
-                "custom" => match &self.pending_custom {
-                    Some(f) => TagListFormat::Custom(f.clone()),
-                    None => TagListFormat::Text,
-                },
-                _ => return Ok(()),
-            };
-        }
-        Ok(())
     }
 
     /// `get <attr>`: the value after `=`.
@@ -411,7 +384,7 @@ where
         &mut self,
     ) -> Result<(Vec<TagRead>, Vec<MalformedTagLine>), AlienError> {
         let body = self.command("t").await?;
-        let (tags, bad) = self.format.parse(&body);
+        let (tags, bad) = self.format.format().parse(&body);
         self.stats.malformed_tag_lines += bad.len() as u64;
         Ok((tags, bad))
     }
@@ -500,7 +473,7 @@ fn frame_text(f: &Frame) -> String {
 
 /// Removes an echoed command line at the start of a body (interactive mode, or a reader that
 /// echoes anyway).
-fn strip_echo(body: &str, cmd: &str) -> String {
+pub(crate) fn strip_echo(body: &str, cmd: &str) -> String {
     let trimmed = body.trim_start_matches(['\r', '\n']);
     let (first, rest) = match trimmed.find(['\r', '\n']) {
         Some(i) => trimmed.split_at(i),

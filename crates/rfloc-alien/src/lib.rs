@@ -8,6 +8,8 @@
 //!   [`ReaderSetup`] and reads [`Snapshot`]s.
 //! - [`AlienSession`] reconnects through a connector closure with back-off and re-applies the
 //!   setup; it and the client implement [`SnapshotReader`], the trait the daemon uses.
+//! - [`Transcript`] reads a recorded session back: commands paired with their replies, and
+//!   the TagList format followed through the session ([`FormatTracker`]). No I/O.
 //! - [`ReaderEmulator`] serves the protocol on any stream or a TCP listener, answering `t` from a
 //!   supplied tag field.
 //!
@@ -19,6 +21,7 @@ mod client;
 mod custom_format;
 mod emulator;
 mod error;
+mod format_tracker;
 mod framing;
 mod reader_time;
 mod reply;
@@ -26,11 +29,13 @@ mod session;
 mod setup;
 mod snapshot;
 mod taglist;
+mod transcript;
 
 pub use client::{AlienClient, AlienConfig, AlienStats, LineEnding, PromptMode};
 pub use custom_format::{CustomFormat, CustomFormatError, FieldKind};
 pub use emulator::{EmulatorOptions, ReaderEmulator, TagField};
 pub use error::{AlienError, SessionEnd};
+pub use format_tracker::FormatTracker;
 pub use framing::{Frame, Prompt, ReplyFramer, MAX_FRAME_LEN};
 pub use reader_time::{civil_from_unix, format_reader_time, unix_from_civil, ReaderTime};
 pub use reply::{parse_reply, session_end, Reply};
@@ -38,3 +43,4 @@ pub use session::{AlienSession, Backoff, Connector};
 pub use setup::{ReaderSetup, SetupCommand, PROJECT_CUSTOM_FORMAT, SEED000_CUSTOM_FORMAT};
 pub use snapshot::{RssiMeaning, Snapshot, SnapshotReader};
 pub use taglist::{parse_tag_id, MalformedTagLine, TagId, TagListFormat, TagRead};
+pub use transcript::{Exchange, Transcript};

@@ -111,3 +111,33 @@ async fn seed000_interactive_session_replays_to_golden() {
     }
     assert_eq!(out, std::fs::read_to_string(&golden).unwrap());
 }
+
+/// The same capture read back without a client (sans-IO [`rfloc_alien::Transcript`]): the
+/// six polls give the tag counts the client got, after the setup switched the format.
+#[test]
+fn seed000_interactive_session_reads_back_as_a_transcript() {
+    let cap = Capture::from_path(&dir().join("alien.cap")).unwrap();
+    let mut t = rfloc_alien::Transcript::new();
+    let mut polls = Vec::new();
+    let mut errors = 0;
+    for rec in &cap.records {
+        match &rec.kind {
+            rfloc_capture::RecordKind::Tx(b) => t.push_client(b),
+            rfloc_capture::RecordKind::Rx(b) => {
+                for ex in t.push_reader(rec.t(), b) {
+                    errors += usize::from(ex.is_error());
+                    if let Some(tags) = t.tags(&ex) {
+                        polls.push(tags.len());
+                    }
+                }
+            }
+            rfloc_capture::RecordKind::Event(_) => {}
+        }
+    }
+    assert_eq!(polls, [5, 7, 0, 5, 7, 5]);
+    assert_eq!(errors, 1, "the `bogus` command's Error 1");
+    assert!(matches!(
+        t.format().format(),
+        rfloc_alien::TagListFormat::Custom(_)
+    ));
+}

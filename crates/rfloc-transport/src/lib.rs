@@ -28,7 +28,7 @@ pub use clock::{Clock, ManualClock, MonotonicClock, SharedClock};
 pub use error::TransportError;
 pub use link::{open, DataBits, FlowControl, LinkConfig, Parity, SerialLink, StopBits, TcpLink};
 pub use mock::{MockTransport, MockTransportBuilder};
-pub use recorder::{CaptureSink, Recorder};
+pub use recorder::{CaptureSink, Recorder, REDACTED};
 
 /// A bidirectional byte stream to a device.
 pub trait DeviceIo: AsyncRead + AsyncWrite + Send + Unpin + std::fmt::Debug {}

@@ -23,6 +23,34 @@ struct SinkState {
     coalesce: bool,
     /// The record being grown while coalescing.
     pending: Option<(u64, RecordKind)>,
+    /// Byte strings never written to the file (a password sent at login).
+    secrets: Vec<Vec<u8>>,
+}
+
+/// What a redacted secret is recorded as.
+pub const REDACTED: &[u8] = b"<redacted>";
+
+/// `bytes` with every occurrence of each secret replaced by [`REDACTED`].
+fn redact(bytes: Vec<u8>, secrets: &[Vec<u8>]) -> Vec<u8> {
+    let mut out = bytes;
+    for secret in secrets.iter().filter(|s| !s.is_empty()) {
+        if out.len() < secret.len() {
+            continue;
+        }
+        let mut next = Vec::with_capacity(out.len());
+        let mut i = 0;
+        while i < out.len() {
+            if out.get(i..i + secret.len()) == Some(secret.as_slice()) {
+                next.extend_from_slice(REDACTED);
+                i += secret.len();
+            } else {
+                next.extend(out.get(i).copied());
+                i += 1;
+            }
+        }
+        out = next;
+    }
+    out
 }
 
 impl SinkState {
@@ -42,11 +70,18 @@ impl SinkState {
     }
 
     fn record(&mut self, t: u64, kind: RecordKind) {
-        match &kind {
-            RecordKind::Rx(b) => self.rx_bytes += b.len() as u64,
-            RecordKind::Tx(b) => self.tx_bytes += b.len() as u64,
-            RecordKind::Event(_) => {}
-        }
+        // Counts are of the bytes on the link, before any redaction.
+        let kind = match kind {
+            RecordKind::Rx(b) => {
+                self.rx_bytes += b.len() as u64;
+                RecordKind::Rx(redact(b, &self.secrets))
+            }
+            RecordKind::Tx(b) => {
+                self.tx_bytes += b.len() as u64;
+                RecordKind::Tx(redact(b, &self.secrets))
+            }
+            event @ RecordKind::Event(_) => event,
+        };
         if !self.coalesce {
             self.write(t, kind);
             return;
@@ -116,6 +151,7 @@ impl CaptureSink {
                 tx_bytes: 0,
                 coalesce: false,
                 pending: None,
+                secrets: Vec::new(),
             })),
             clock,
         })
@@ -150,6 +186,17 @@ impl CaptureSink {
                 s.write_pending();
             }
             s.coalesce = on;
+        }
+    }
+
+    /// Never writes `secret` to the file: every occurrence in a later read or write (within one
+    /// chunk) is recorded as [`REDACTED`]. For credentials the driver sends, such as a reader
+    /// password; the byte counts still count what crossed the link.
+    pub fn redact(&self, secret: &[u8]) {
+        if let Ok(mut s) = self.state.lock() {
+            if !secret.is_empty() && !s.secrets.iter().any(|x| x == secret) {
+                s.secrets.push(secret.to_vec());
+            }
         }
     }
 
@@ -331,5 +378,29 @@ mod tests {
         let (plain, rx, tx) = records(false);
         assert_eq!(plain.len(), 7, "{plain:?}");
         assert_eq!((rx, tx), (6, 3));
+    }
+
+    #[test]
+    fn secrets_are_never_written_but_still_counted() {
+        let out = SharedBuf::default();
+        let clock = ManualClock::new();
+        let sink = CaptureSink::from_writer(
+            Box::new(out.clone()),
+            &Header::new("test", "tcp"),
+            clock.clone(),
+        )
+        .unwrap();
+        sink.redact(b"hunter2");
+        sink.redact(b"");
+        sink.record(RecordKind::Tx(b"\x01alien\r\n".to_vec()));
+        sink.record(RecordKind::Tx(b"\x01hunter2\r\n".to_vec()));
+        sink.record(RecordKind::Rx(b"echo hunter2 hunter2!".to_vec()));
+        sink.flush().unwrap();
+        let text = String::from_utf8(out.0.lock().unwrap().clone()).unwrap();
+        assert!(!text.contains("hunter2"), "{text}");
+        assert!(text.contains("tx s:\\x01<redacted>\\r\\n"), "{text}");
+        assert!(text.contains("rx s:echo <redacted> <redacted>!"), "{text}");
+        assert!(text.contains("tx x:01 61 6C 69 65 6E 0D 0A"), "{text}");
+        assert_eq!((sink.tx_bytes(), sink.rx_bytes()), (18, 21));
     }
 }

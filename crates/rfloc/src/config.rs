@@ -430,6 +430,18 @@ pub struct SnapshotSettings {
     #[serde(default = "default_states")]
     pub states: usize,
 }
+impl Default for SnapshotSettings {
+    fn default() -> Self {
+        Self {
+            database: default_database(),
+            survey: None,
+            tag_map: None,
+            seed: 0,
+            clustering: default_clustering(),
+            states: default_states(),
+        }
+    }
+}
 fn default_database() -> PathBuf {
     PathBuf::from("snapshot-db.json")
 }

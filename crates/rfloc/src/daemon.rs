@@ -43,9 +43,80 @@ pub struct DeviceContext {
     pub config_dir: Option<PathBuf>,
     /// Simulated seconds per wall second (1 on a real robot).
     pub time_scale: f64,
+    /// The device's capture once its link was first opened: one file per device and run,
+    /// appended to across reconnects.
+    pub capture: Arc<std::sync::Mutex<Option<CaptureSink>>>,
 }
 
 impl DeviceContext {
+    /// A context for `device` with no capture open yet.
+    pub fn new(
+        device: DeviceConfig,
+        events: mpsc::Sender<DeviceEvent>,
+        stop: CancellationToken,
+        clock: SharedClock,
+        capture_dir: Option<PathBuf>,
+        config_dir: Option<PathBuf>,
+        time_scale: f64,
+    ) -> Self {
+        Self {
+            device,
+            events,
+            stop,
+            clock,
+            capture_dir,
+            config_dir,
+            time_scale,
+            capture: Arc::default(),
+        }
+    }
+
+    /// The device's capture, when recording and once the link was opened.
+    #[must_use]
+    pub fn capture(&self) -> Option<CaptureSink> {
+        self.capture.lock().ok().and_then(|c| c.as_ref().cloned())
+    }
+
+    /// Never records `secret` in this device's capture (see [`CaptureSink::redact`]). Call it
+    /// before the credential is sent; it also applies to a capture opened later.
+    pub fn redact(&self, secret: &str) -> anyhow::Result<()> {
+        if self.capture_dir.is_none() {
+            return Ok(());
+        }
+        let sink = match self.capture() {
+            Some(s) => s,
+            None => self.create_capture()?,
+        };
+        sink.redact(secret.as_bytes());
+        Ok(())
+    }
+
+    /// Creates the device's capture file (once per run).
+    fn create_capture(&self) -> anyhow::Result<CaptureSink> {
+        let mut slot = self
+            .capture
+            .lock()
+            .map_err(|_| anyhow::anyhow!("capture slot poisoned"))?;
+        if let Some(s) = slot.as_ref() {
+            return Ok(s.clone());
+        }
+        let (Some(dir), Some(link)) = (&self.capture_dir, &self.device.link) else {
+            anyhow::bail!("device {:?} is not recorded", self.device.name);
+        };
+        let device_kind = capture_device_name(&self.device.driver);
+        let mut header = Header::new(device_kind, link.describe());
+        header.started = Some(message::iso8601(SystemTime::now()).replace(".000Z", "Z"));
+        header.notes.push(format!(
+            "device {} recorded by rfloc {}",
+            self.device.name,
+            env!("CARGO_PKG_VERSION")
+        ));
+        let path = dir.join(format!("{}.cap", self.device.name));
+        let sink = CaptureSink::create(&path, &header, Arc::clone(&self.clock))?;
+        *slot = Some(sink.clone());
+        Ok(sink)
+    }
+
     /// Opens the device's link, wrapped in a recorder when capturing. The only place the daemon
     /// opens links.
     pub async fn open_link(&self) -> anyhow::Result<Transport> {
@@ -61,22 +132,12 @@ impl DeviceContext {
             .as_ref()
             .with_context(|| format!("device {:?} has no link", self.device.name))?;
         let io = open(link).await?;
-        match &self.capture_dir {
-            None => Ok((io, None)),
-            Some(dir) => {
-                let device_kind = capture_device_name(&self.device.driver);
-                let mut header = Header::new(device_kind, link.describe());
-                header.started = Some(message::iso8601(SystemTime::now()).replace(".000Z", "Z"));
-                header.notes.push(format!(
-                    "device {} recorded by rfloc {}",
-                    self.device.name,
-                    env!("CARGO_PKG_VERSION")
-                ));
-                let path = dir.join(format!("{}.cap", self.device.name));
-                let sink = CaptureSink::create(&path, &header, Arc::clone(&self.clock))?;
-                Ok((Box::new(Recorder::new(io, sink.clone())), Some(sink)))
-            }
+        if self.capture_dir.is_none() {
+            return Ok((io, None));
         }
+        let sink = self.create_capture()?;
+        sink.event("mark link opened");
+        Ok((Box::new(Recorder::new(io, sink.clone())), Some(sink)))
     }
 
     /// Sends a status event (never blocks the device task for long).
@@ -180,15 +241,15 @@ pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
     let mut motion = None;
     let mut sweeps = None;
     for device in &cfg.devices {
-        let ctx = DeviceContext {
-            device: device.clone(),
-            events: ev_tx.clone(),
-            stop: stop.clone(),
-            clock: Arc::clone(&clock),
-            capture_dir: capture_dir.clone(),
-            config_dir: opts.config_dir.clone(),
+        let ctx = DeviceContext::new(
+            device.clone(),
+            ev_tx.clone(),
+            stop.clone(),
+            Arc::clone(&clock),
+            capture_dir.clone(),
+            opts.config_dir.clone(),
             time_scale,
-        };
+        );
         let span =
             tracing::info_span!("device", name = %device.name, driver = device.driver.kind());
         let sweep = match &device.driver {

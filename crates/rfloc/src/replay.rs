@@ -21,7 +21,9 @@ use rfloc_xbee::{
     Node,
 };
 
-use crate::config::{EkfSlamSettings, EstimatorConfig, HfGridSettings, RobotConfig};
+use crate::config::{
+    EkfSlamSettings, EstimatorConfig, HfGridSettings, RobotConfig, SnapshotSettings,
+};
 use crate::devices::{swept_beacons, SweepMark};
 use crate::events::DeviceEvent;
 use crate::message::{pose_json, PoseFormat};
@@ -74,10 +76,12 @@ pub async fn replay_lines(
         (Some("odometry"), None) => EstimatorConfig::Odometry,
         (Some("hfgrid"), None) => EstimatorConfig::Hfgrid(HfGridSettings::default()),
         (Some("ekfslam"), None) => EstimatorConfig::Ekfslam(EkfSlamSettings::default()),
+        (Some("snapshot"), None) => EstimatorConfig::Snapshot(snapshot_settings(dir)),
         (Some(other), None) => {
-            anyhow::bail!("unknown pipeline {other:?} (odometry, hfgrid, ekfslam)")
+            anyhow::bail!("unknown pipeline {other:?} (odometry, hfgrid, ekfslam, snapshot)")
         }
         (None, None) if has("kts") => EstimatorConfig::Hfgrid(HfGridSettings::default()),
+        (None, None) if has("alien") => EstimatorConfig::Snapshot(snapshot_settings(dir)),
         (None, None) if has("xbee") => EstimatorConfig::Ekfslam(EkfSlamSettings::default()),
         (None, None) => EstimatorConfig::Odometry,
     };
@@ -104,6 +108,7 @@ pub async fn replay_lines(
         match device.as_str() {
             "kts-rfidm1356" => events.extend(replay_kts(&name, cap.clone()).await?),
             "pioneer-aria" => events.extend(replay_aria(&name, cap.clone()).await?),
+            "alien-alr9900" => events.extend(replay_alien(&name, cap)),
             "xbee-api1" | "xbee-api2" => {
                 let mode = if device == "xbee-api1" {
                     ApiMode::Unescaped
@@ -127,7 +132,10 @@ pub async fn replay_lines(
         text: "end".into(),
     });
 
-    let mut p = pipeline::build(&estimator, cfg.and_then(|c| c.state.dir.as_deref()));
+    // Learned files: the robot file's state folder, or the session folder itself (a simulated
+    // trial keeps its survey, tag map and database next to its captures).
+    let state_dir = cfg.map_or(Some(dir), |c| c.state.dir.as_deref());
+    let mut p = pipeline::build(&estimator, state_dir);
     let fmt = PoseFormat {
         frame_id: cfg.map_or_else(|| "map".into(), |c| c.robot.frame_id.clone()),
         child_frame_id: cfg.map_or_else(|| "base_link".into(), |c| c.robot.child_frame_id.clone()),
@@ -145,6 +153,80 @@ pub async fn replay_lines(
         }
     }
     Ok(lines)
+}
+
+/// Snapshot settings for a session folder without a robot file: the tag map when the folder
+/// holds `survey.json` and `tag-map.json`, the cluster database `snapshot-db.json` otherwise.
+fn snapshot_settings(dir: &Path) -> SnapshotSettings {
+    let both = dir.join("survey.json").exists() && dir.join("tag-map.json").exists();
+    SnapshotSettings {
+        survey: both.then(|| "survey.json".into()),
+        tag_map: both.then(|| "tag-map.json".into()),
+        ..SnapshotSettings::default()
+    }
+}
+
+/// The reader's capture read back with the sans-IO transcript: every TagList reply is one
+/// read at its recorded time; each `mark snapshot reads=N` (written by the device task after
+/// each averaged snapshot) averages the last N reads into one snapshot event, as the task
+/// did. A capture without such marks gives one snapshot per read.
+fn replay_alien(name: &str, cap: &Capture) -> Vec<DeviceEvent> {
+    let marked = cap.events().any(|(_, text)| {
+        text.strip_prefix("mark ")
+            .and_then(crate::devices::parse_snapshot_mark)
+            .is_some()
+    });
+    let mut transcript = rfloc_alien::Transcript::new();
+    let mut reads: Vec<(f64, Vec<(String, f64)>)> = Vec::new();
+    let mut out = Vec::new();
+    let snapshot = |t: f64, tags: Vec<(String, f64)>| DeviceEvent::UhfSnapshot {
+        device: name.to_string(),
+        t,
+        tags,
+    };
+    for rec in &cap.records {
+        match &rec.kind {
+            RecordKind::Tx(b) => transcript.push_client(b),
+            RecordKind::Rx(b) => {
+                for ex in transcript.push_reader(rec.t(), b) {
+                    let Some(tags) = transcript.tags(&ex) else {
+                        continue;
+                    };
+                    let read: Vec<(String, f64)> = tags
+                        .iter()
+                        .filter_map(|t| t.rssi.map(|r| (t.id.to_string(), r)))
+                        .collect();
+                    if marked {
+                        reads.push((ex.t, read));
+                    } else {
+                        out.push(snapshot(ex.t, crate::devices::average_reads(&[read])));
+                    }
+                }
+            }
+            RecordKind::Event(text) => {
+                let Some(n) = text
+                    .strip_prefix("mark ")
+                    .and_then(crate::devices::parse_snapshot_mark)
+                else {
+                    continue;
+                };
+                let from = reads.len().saturating_sub(n);
+                let group: Vec<(f64, Vec<(String, f64)>)> = reads.drain(from..).collect();
+                reads.clear();
+                if let Some((t, _)) = group.last() {
+                    let polls: Vec<Vec<(String, f64)>> =
+                        group.iter().map(|(_, r)| r.clone()).collect();
+                    out.push(snapshot(*t, crate::devices::average_reads(&polls)));
+                }
+            }
+        }
+    }
+    tracing::debug!(
+        snapshots = out.len(),
+        stray_frames = transcript.stray_frames,
+        "alien replay done"
+    );
+    out
 }
 
 async fn replay_kts(name: &str, cap: Capture) -> anyhow::Result<Vec<DeviceEvent>> {

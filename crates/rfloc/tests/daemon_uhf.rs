@@ -319,7 +319,8 @@ dir = "{}"
     )
     .unwrap();
 
-    let daemon = common::Daemon::start(&cfg, "debug");
+    let session = dir.path().join("session");
+    let daemon = common::Daemon::record(&cfg, &session, "debug");
     let mut lines = daemon.pose_lines(pose_port).await;
     let at_a = wait_pose_close(&mut lines, &a).await;
     // The covariance is the particle cloud's: positive, below the fix's spread bound.
@@ -342,4 +343,47 @@ dir = "{}"
     assert!(status.success(), "{log}");
     assert!(log.contains("tag map loaded"), "{log}");
     drop(slave);
+
+    // The recorded reader link: the password never reached the file, each averaged snapshot is
+    // marked, and the session replays through the same pipeline to the same two places.
+    let text = std::fs::read_to_string(session.join("uhf.cap")).unwrap();
+    assert!(!text.contains(SECRET), "the password is in the capture");
+    assert!(
+        text.contains("<redacted>"),
+        "no redacted login in the capture"
+    );
+    let marks = text.matches("ev mark snapshot reads=2").count();
+    assert!(marks >= 2, "{marks} snapshot marks");
+    let replay = std::process::Command::new(env!("CARGO_BIN_EXE_rfloc"))
+        .arg("replay")
+        .arg(&session)
+        .output()
+        .unwrap();
+    assert!(
+        replay.status.success(),
+        "{}",
+        String::from_utf8_lossy(&replay.stderr)
+    );
+    let poses: Vec<serde_json::Value> = String::from_utf8_lossy(&replay.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .filter(|v: &serde_json::Value| v["source"] == "snapshot")
+        .collect();
+    assert!(
+        poses.len() + 2 >= marks,
+        "{} poses for {marks} snapshots",
+        poses.len()
+    );
+    let near = |v: &serde_json::Value, p: &Pose2| {
+        (v["x"].as_f64().unwrap() - p.x).hypot(v["y"].as_f64().unwrap() - p.y) < 0.15
+    };
+    let first_b = poses
+        .iter()
+        .position(|v| near(v, &b))
+        .expect("replay never at b");
+    assert!(
+        poses[..first_b].iter().any(|v| near(v, &a)),
+        "replay never at a before b"
+    );
+    assert!(near(poses.last().unwrap(), &b), "replay ends away from b");
 }

@@ -1,15 +1,19 @@
 //! Alien ALR-9900 task: a reconnecting session (login, setup, keepalive), polled for snapshots
-//! averaged over the configured number of reads.
+//! averaged over the configured number of reads ([`average_reads`], the seed's rule).
 //!
 //! The password comes from `password_file` (looked up in `$CREDENTIALS_DIRECTORY` first, so a
 //! systemd `LoadCredential=` works, then next to the robot file), or the reader's factory
-//! default when none is configured. It is never logged.
+//! default when none is configured. It is never logged, and never written to the link's
+//! capture (recorded as `<redacted>`).
+//!
+//! Captures: each averaged snapshot is followed by `mark snapshot reads=N`, so that a replay
+//! groups the recorded tag lists exactly as the task did.
 
-use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::time::Duration;
 
 use rfloc_alien::{AlienConfig, AlienSession, Backoff, Connector, ReaderSetup, SnapshotReader};
+use rfloc_snapshot::{AverageConfig, AverageTagSet, Snapshot, TagId};
 use rfloc_transport::Transport;
 
 use crate::config::{resolve_credential, AlienSettings};
@@ -20,6 +24,41 @@ use crate::message::DeviceState;
 
 /// Seconds between two snapshot polls on a real robot.
 const POLL_PERIOD_S: f64 = 0.5;
+
+/// The capture mark written after each averaged snapshot.
+pub fn snapshot_mark(reads: usize) -> String {
+    format!("mark snapshot reads={reads}")
+}
+
+/// The number of reads of a `snapshot reads=N` mark (text after `mark `).
+#[must_use]
+pub fn parse_snapshot_mark(text: &str) -> Option<usize> {
+    text.trim().strip_prefix("snapshot reads=")?.parse().ok()
+}
+
+/// Averages tag lists read at one place (seed 000's `scanNetTags`): the tags of the read that
+/// saw the most, each with its mean RSS over the reads that saw it. IDs are hex EPCs; others
+/// are dropped.
+#[must_use]
+pub fn average_reads(reads: &[Vec<(String, f64)>]) -> Vec<(String, f64)> {
+    let snapshots: Vec<Snapshot> = reads
+        .iter()
+        .map(|r| {
+            Snapshot::from_reads(
+                r.iter()
+                    .filter_map(|(id, rss)| Some((TagId::from_hex(id)?, *rss))),
+            )
+        })
+        .collect();
+    let config = AverageConfig {
+        tag_set: AverageTagSet::LargestRead,
+        threshold: f64::NEG_INFINITY,
+    };
+    Snapshot::average(&snapshots, &config)
+        .iter()
+        .map(|(id, rss)| (id.to_string(), rss))
+        .collect()
+}
 
 fn password(ctx: &DeviceContext, settings: &AlienSettings) -> Result<String, String> {
     let Some(file) = &settings.password_file else {
@@ -47,6 +86,11 @@ pub(super) async fn run(ctx: DeviceContext, settings: AlienSettings) {
             return;
         }
     };
+    if let Err(e) = ctx.redact(&password) {
+        tracing::error!(error = %e, "UHF reader not started: its capture cannot be opened");
+        ctx.status(DeviceState::Closed, e.to_string()).await;
+        return;
+    }
     let config = AlienConfig {
         username: settings.username.clone(),
         password,
@@ -73,8 +117,8 @@ pub(super) async fn run(ctx: DeviceContext, settings: AlienSettings) {
     let mut connected = false;
     ctx.status(DeviceState::Connecting, "login").await;
     while !ctx.stop.is_cancelled() {
-        // Average `reads` polls: mean RSS of each tag over the polls that saw it.
-        let mut sums: BTreeMap<String, (f64, u32)> = BTreeMap::new();
+        // Average `reads` polls.
+        let mut polls: Vec<Vec<(String, f64)>> = Vec::with_capacity(reads as usize);
         let mut t = 0.0;
         let mut failed = None;
         for _ in 0..reads {
@@ -85,11 +129,12 @@ pub(super) async fn run(ctx: DeviceContext, settings: AlienSettings) {
             match snap {
                 Ok(s) => {
                     t = s.t;
-                    for (id, rss) in s.id_rss() {
-                        let e = sums.entry(id.to_string()).or_insert((0.0, 0));
-                        e.0 += rss;
-                        e.1 += 1;
-                    }
+                    polls.push(
+                        s.id_rss()
+                            .into_iter()
+                            .map(|(id, rss)| (id.to_string(), rss))
+                            .collect(),
+                    );
                 }
                 Err(e) => {
                     failed = Some(e);
@@ -114,10 +159,10 @@ pub(super) async fn run(ctx: DeviceContext, settings: AlienSettings) {
             )
             .await;
         }
-        let tags = sums
-            .into_iter()
-            .map(|(id, (sum, n))| (id, sum / f64::from(n)))
-            .collect();
+        let tags = average_reads(&polls);
+        if let Some(c) = ctx.capture() {
+            c.event(&snapshot_mark(polls.len()));
+        }
         if ctx
             .events
             .send(DeviceEvent::UhfSnapshot {

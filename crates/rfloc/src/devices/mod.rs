@@ -15,6 +15,7 @@ mod aria;
 mod kts;
 mod xbee;
 
+pub use alien::{average_reads, parse_snapshot_mark, snapshot_mark};
 pub use xbee::{swept_beacons, AntennaSource, NdRssiProbe, SweepMark, SweepRequest, SweepSetup};
 
 /// A velocity command for the base: (m/s, rad/s).

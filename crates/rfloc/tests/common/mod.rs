@@ -26,9 +26,29 @@ pub struct Daemon {
 impl Daemon {
     /// Starts the daemon with `RFLOC_LOG=<log_level>` and without a systemd credentials folder.
     pub fn start(config: &std::path::Path, log_level: &str) -> Self {
+        Self::spawn(
+            &["run".as_ref(), "-c".as_ref(), config.as_os_str()],
+            log_level,
+        )
+    }
+
+    /// As [`Daemon::start`], recording every device link into `out` (`rfloc record`).
+    pub fn record(config: &std::path::Path, out: &std::path::Path, log_level: &str) -> Self {
+        Self::spawn(
+            &[
+                "record".as_ref(),
+                "-c".as_ref(),
+                config.as_os_str(),
+                "-o".as_ref(),
+                out.as_os_str(),
+            ],
+            log_level,
+        )
+    }
+
+    fn spawn(args: &[&std::ffi::OsStr], log_level: &str) -> Self {
         let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_rfloc"))
-            .args(["run", "-c"])
-            .arg(config)
+            .args(args)
             .env("RFLOC_LOG", log_level)
             .env_remove("CREDENTIALS_DIRECTORY")
             .stdout(Stdio::null())

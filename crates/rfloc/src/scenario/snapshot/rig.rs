@@ -71,6 +71,8 @@ pub struct SnapshotRig {
     tasks: Vec<JoinHandle<()>>,
     reader_task: JoinHandle<std::io::Result<()>>,
     sinks: Vec<CaptureSink>,
+    /// The reader's capture (snapshot marks).
+    reader_sink: CaptureSink,
     bad_epcs: Arc<Mutex<u64>>,
     counters: RigCounters,
     _robot_slave: tokio_serial::SerialStream,
@@ -242,7 +244,8 @@ impl SnapshotRig {
             stop,
             tasks,
             reader_task,
-            sinks: vec![base_sink, reader_sink],
+            sinks: vec![base_sink, reader_sink.clone()],
+            reader_sink,
             bad_epcs,
             counters: RigCounters::default(),
             _robot_slave: robot_slave,
@@ -294,6 +297,9 @@ impl SnapshotRig {
                 s.id_rss().into_iter().map(|(id, r)| (TagId::new(id.0), r)),
             ));
         }
+        // Framed for replays as the daemon's reader task frames its snapshots.
+        self.reader_sink
+            .event(&crate::devices::snapshot_mark(reads.len()));
         Ok(Snapshot::average(&reads, &self.average))
     }
 
