@@ -184,18 +184,31 @@ impl Default for ClientConfig {
     }
 }
 
+/// Wall-time floors [`ClientConfig::scaled`] keeps on the waits that decide a link is dead or
+/// done: SYNC reply, link loss, CLOSE linger. Fully scaled (time scale 10: 100 ms, 200 ms,
+/// 100 ms of wall time) handshakes gave up on late replies, links were declared lost and a
+/// CLOSE was dropped unread on a machine with a load average of 3–4 on 2 cores: the emulator's
+/// bytes are late by scheduling, which no time scale shortens.
+pub const SCALED_SYNC_TIMEOUT_FLOOR: Duration = Duration::from_secs(1);
+pub const SCALED_LINK_TIMEOUT_FLOOR: Duration = Duration::from_secs(2);
+pub const SCALED_CLOSE_LINGER_FLOOR: Duration = Duration::from_millis(500);
+
 impl ClientConfig {
     /// Divides every period and timeout by `time_scale` (for an emulator running faster than
-    /// wall time). Non-positive or non-finite scales leave the config unchanged.
+    /// wall time), except that the SYNC timeout, link timeout and CLOSE linger stay at least
+    /// their wall-time floors ([`SCALED_LINK_TIMEOUT_FLOOR`] and the others) or their unscaled
+    /// value when that is shorter. Non-positive or non-finite scales leave the config
+    /// unchanged.
     #[must_use]
     pub fn scaled(mut self, time_scale: f64) -> Self {
         if time_scale.is_finite() && time_scale > 0.0 {
             let s = |d: Duration| d.div_f64(time_scale);
+            let floored = |d: Duration, floor: Duration| s(d).max(d.min(floor));
             self.pulse_period = s(self.pulse_period);
-            self.sync_timeout = s(self.sync_timeout);
-            self.link_timeout = s(self.link_timeout);
+            self.sync_timeout = floored(self.sync_timeout, SCALED_SYNC_TIMEOUT_FLOOR);
+            self.link_timeout = floored(self.link_timeout, SCALED_LINK_TIMEOUT_FLOOR);
             self.reconnect_delay = s(self.reconnect_delay);
-            self.close_linger = s(self.close_linger);
+            self.close_linger = floored(self.close_linger, SCALED_CLOSE_LINGER_FLOOR);
         }
         self
     }
@@ -895,6 +908,29 @@ mod tests {
 
     fn bytes(c: Command) -> Vec<u8> {
         c.encode(&CommandLimits::P3DX).unwrap()
+    }
+
+    #[test]
+    fn scaling_keeps_the_wall_time_floors() {
+        let c = ClientConfig::default().scaled(20.0);
+        assert_eq!(c.pulse_period, Duration::from_millis(50));
+        assert_eq!(c.reconnect_delay, Duration::from_millis(50));
+        assert_eq!(c.sync_timeout, SCALED_SYNC_TIMEOUT_FLOOR);
+        assert_eq!(c.link_timeout, SCALED_LINK_TIMEOUT_FLOOR);
+        assert_eq!(c.close_linger, SCALED_CLOSE_LINGER_FLOOR);
+        // A floor never lengthens what was shorter unscaled; a slow-down scale lengthens all.
+        let short = ClientConfig {
+            link_timeout: Duration::from_millis(300),
+            ..ClientConfig::default()
+        }
+        .scaled(10.0);
+        assert_eq!(short.link_timeout, Duration::from_millis(300));
+        let slow = ClientConfig::default().scaled(0.5);
+        assert_eq!(slow.link_timeout, Duration::from_secs(4));
+        assert_eq!(
+            ClientConfig::default().scaled(f64::NAN).link_timeout,
+            Duration::from_secs(2)
+        );
     }
 
     /// docs/protocols/pioneer-aria.md §8 Example G.

@@ -23,7 +23,7 @@ pub mod sip;
 
 pub use client::{
     AriaClient, ClientConfig, ClientError, ClientStats, ConnectFuture, LinkState, MobileBase,
-    Odometry,
+    Odometry, SCALED_CLOSE_LINGER_FLOOR, SCALED_LINK_TIMEOUT_FLOOR, SCALED_SYNC_TIMEOUT_FLOOR,
 };
 pub use command::{Arg, ArgError, Command, CommandError, CommandLimits, LinkPhase};
 pub use emulator::{

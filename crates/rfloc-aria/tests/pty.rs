@@ -25,31 +25,13 @@ fn emulator_config() -> EmulatorConfig {
 
 /// The client's periods scaled to the emulator; the pulse comes every 250 ms of simulated time
 /// (an eighth of the watchdog) so that a briefly descheduled test process does not trip it.
+/// `scaled` keeps wall-time floors on the SYNC and link timeouts and the CLOSE linger.
 fn client_config() -> ClientConfig {
-    with_wall_floors(
-        ClientConfig {
-            pulse_period: Duration::from_millis(250),
-            ..ClientConfig::default()
-        }
-        .scaled(SCALE),
-    )
-}
-
-/// Wall-time floors for the timeouts of a scaled client config. Fully scaled (at time scale
-/// 10: SYNC timeout 100 ms, link timeout 200 ms, CLOSE linger 100 ms of wall time) these tests
-/// failed on a machine with a load average of 3–4 on 2 cores: handshakes gave up on late
-/// replies ("too many unexpected packets"), a link was declared lost, the single-use link
-/// closed and the emulator's read failed with EIO, or the emulator read the CLOSE after the
-/// client had dropped its end. The same failures came with and without the emulator's
-/// `biased;` select (alternating runs of both builds, 4 and 5 failing runs of 6), so they
-/// were the tests' wall-time budgets, not the emulator.
-fn with_wall_floors(scaled: ClientConfig) -> ClientConfig {
     ClientConfig {
-        sync_timeout: scaled.sync_timeout.max(Duration::from_secs(1)),
-        link_timeout: scaled.link_timeout.max(Duration::from_secs(2)),
-        close_linger: scaled.close_linger.max(Duration::from_millis(500)),
-        ..scaled
+        pulse_period: Duration::from_millis(250),
+        ..ClientConfig::default()
     }
+    .scaled(SCALE)
 }
 
 /// Starts an emulator on one end of a pty pair and returns the other end.
@@ -212,12 +194,9 @@ async fn pulses_keep_an_idle_robot_alive() {
         ..EmulatorConfig::default()
     };
     let (host, emu, _task) = spawn_emulator(config);
-    let client = AriaClient::from_stream(
-        host,
-        with_wall_floors(ClientConfig::default().scaled(scale)),
-    )
-    .await
-    .unwrap();
+    let client = AriaClient::from_stream(host, ClientConfig::default().scaled(scale))
+        .await
+        .unwrap();
     let mut rx = client.odometry();
     client.set_velocity(0.1, 0.0).await.unwrap();
     // 6 s simulated without any command from the caller.
@@ -440,13 +419,10 @@ async fn long_run_crosses_the_15_bit_wrap_on_a_p3dx() {
     };
     config.identity.subclass = "p3dx".into();
     let (host, emu, _task) = spawn_emulator(config);
-    // Fully scaled, the link timeout would be 40 ms of wall time (see `with_wall_floors`).
-    let client = AriaClient::from_stream(
-        host,
-        with_wall_floors(ClientConfig::default().scaled(scale)),
-    )
-    .await
-    .unwrap();
+    // Fully scaled, the link timeout would be 40 ms of wall time; `scaled` keeps its floor.
+    let client = AriaClient::from_stream(host, ClientConfig::default().scaled(scale))
+        .await
+        .unwrap();
     assert!((client.factors().dist_conv - 0.485).abs() < 1e-12);
     let mut rx = client.odometry();
     client.set_velocity(2.0, 0.0).await.unwrap();

@@ -68,23 +68,20 @@ pub fn spawn(ctx: DeviceContext, span: tracing::Span, sweep: Option<SweepSetup>)
 }
 
 /// Pioneer client settings for a base running `time_scale` times faster than wall time. Periods
-/// and timeouts are scaled, but the link-loss and handshake timeouts keep a floor in wall time
-/// (1 s and 0.5 s): a scaled 100 ms would declare the link lost whenever the machine is busy.
+/// and timeouts are scaled; the link-loss and handshake timeouts keep their wall-time floors
+/// (`rfloc_aria::ClientConfig::scaled`).
 #[must_use]
 pub fn scaled_base_config(
     clock: rfloc_transport::SharedClock,
     pulse_period_s: f64,
     time_scale: f64,
 ) -> rfloc_aria::ClientConfig {
-    let mut config = rfloc_aria::ClientConfig {
+    rfloc_aria::ClientConfig {
         pulse_period: Duration::from_secs_f64(pulse_period_s.max(0.05)),
         clock: Some(clock),
         ..rfloc_aria::ClientConfig::default()
     }
-    .scaled(time_scale);
-    config.link_timeout = config.link_timeout.max(Duration::from_secs(1));
-    config.sync_timeout = config.sync_timeout.max(Duration::from_millis(500));
-    config
+    .scaled(time_scale)
 }
 
 /// Waits `d` or until the daemon stops; false when stopping.
