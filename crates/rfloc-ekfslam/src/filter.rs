@@ -51,7 +51,13 @@ struct Scalar {
     value: f64,
     variance: f64,
     angular: bool,
+    /// State index of the pose the row's `d_pose` refers to (0: the robot; else a pose copy).
+    pose_col: usize,
 }
+
+/// Prior variance of a beacon position before its stored views are applied, m²: wide enough to
+/// carry no information next to the views.
+const UNINFORMED_VARIANCE_M2: f64 = 1e4;
 
 /// EKF-SLAM over robot pose and beacon positions. See the crate docs for the maths.
 #[derive(Debug, Clone)]
@@ -408,6 +414,7 @@ impl EkfSlam {
                     value: range_m,
                     variance: variance_m2,
                     angular: false,
+                    pose_col: 0,
                 },
                 RangeReading::RssiDbm {
                     rssi_dbm,
@@ -419,6 +426,7 @@ impl EkfSlam {
                         value: rssi_dbm,
                         variance: variance_db2,
                         angular: false,
+                        pose_col: 0,
                     },
                     RssiHandling::ConvertToRange => {
                         let d = cfg.path_loss.distance_for(rssi_dbm);
@@ -429,6 +437,7 @@ impl EkfSlam {
                             value: d,
                             variance: sd * sd,
                             angular: false,
+                            pose_col: 0,
                         }
                     }
                 },
@@ -442,6 +451,7 @@ impl EkfSlam {
                 value: br.bearing_rad,
                 variance: br.variance_rad2,
                 angular: true,
+                pose_col: 0,
             });
         }
         Ok(v)
@@ -458,20 +468,21 @@ impl EkfSlam {
                 return ObservationOutcome::Invalid(e);
             }
         };
-        self.apply_scalars(i, &scalars)
+        self.apply_scalars(i, &scalars, true)
     }
 
     /// Sequential EKF update of one beacon's 1–2 scalar measurements (one joint update).
-    fn apply_scalars(&mut self, bi: usize, scalars: &[Scalar]) -> ObservationOutcome {
+    fn apply_scalars(&mut self, bi: usize, scalars: &[Scalar], gated: bool) -> ObservationOutcome {
         let n = self.x.len();
         let m = scalars.len();
         // M = P Hᵀ using only the 3 pose and 2 beacon columns of H: O(n·m).
         let mut mm = DMatrix::zeros(n, m);
         for (k, s) in scalars.iter().enumerate() {
+            let pc = s.pose_col;
             let cols = [
-                (0, s.row.d_pose[0]),
-                (1, s.row.d_pose[1]),
-                (2, s.row.d_pose[2]),
+                (pc, s.row.d_pose[0]),
+                (pc + 1, s.row.d_pose[1]),
+                (pc + 2, s.row.d_pose[2]),
                 (bi, s.row.d_beacon[0]),
                 (bi + 1, s.row.d_beacon[1]),
             ];
@@ -487,10 +498,11 @@ impl EkfSlam {
         for (a, sa) in scalars.iter().enumerate() {
             let hp = &sa.row.d_pose;
             let hb = &sa.row.d_beacon;
+            let pc = sa.pose_col;
             for k in 0..m {
-                s_mat[(a, k)] = hp[0] * mm[(0, k)]
-                    + hp[1] * mm[(1, k)]
-                    + hp[2] * mm[(2, k)]
+                s_mat[(a, k)] = hp[0] * mm[(pc, k)]
+                    + hp[1] * mm[(pc + 1, k)]
+                    + hp[2] * mm[(pc + 2, k)]
                     + hb[0] * mm[(bi, k)]
                     + hb[1] * mm[(bi + 1, k)];
             }
@@ -514,7 +526,7 @@ impl EkfSlam {
             self.stats.invalid += 1;
             return ObservationOutcome::Invalid(InvalidObservation::SingularInnovation);
         }
-        if gate.enabled && nis > limit {
+        if gated && gate.enabled && nis > limit {
             self.stats.rejected_by_gate += 1;
             return ObservationOutcome::Rejected { nis, dof: m };
         }
@@ -624,7 +636,11 @@ impl EkfSlam {
             .map(|v| v.clone.and_then(|c| self.clone_index(c)))
             .collect();
         match clone_rows {
-            Some(rows) => self.augment_from_views(obs.id, &tri, &rows),
+            Some(rows) => {
+                if !self.add_with_views(obs.id, &tri, &entry) {
+                    self.augment_from_views(obs.id, &tri, &rows);
+                }
+            }
             None => {
                 // Treat the triangulated point as a point known in the current robot frame:
                 // b = p + R(θ)l, l = R(θ)ᵀ(b − p), so that the new beacon gets full
@@ -638,6 +654,61 @@ impl EkfSlam {
             }
         }
         ObservationOutcome::Added
+    }
+
+    /// Adds a beacon whose views' poses are copies in the state: at the triangulated position
+    /// with an uninformed prior, then one joint EKF update with every stored view, each against
+    /// its pose copy, linearised at the triangulated position (the least-squares optimum of the
+    /// same views). Unlike attaching the triangulated point, this keeps the views' information
+    /// beyond the beacon's two coordinates: where they over-determine it, they correct the
+    /// copies' poses, and through their correlations the current pose and the map. Returns
+    /// false (and leaves the filter as it was) when the update cannot be applied.
+    fn add_with_views(&mut self, id: BeaconId, tri: &Triangulated, entry: &PendingBeacon) -> bool {
+        let n = self.x.len();
+        let (x0, p0) = (self.x.clone(), self.p.clone());
+        let wide = Matrix2::identity() * UNINFORMED_VARIANCE_M2;
+        self.insert_beacon(id, &tri.position, &Matrix2xX::zeros(n), &wide);
+        let bi = 3 + 2 * (self.ids.len() - 1);
+        let mut all = Vec::new();
+        let mut usable = true;
+        for v in &entry.views {
+            let (Some(col), Some(pose)) = (
+                v.clone.and_then(|c| self.clone_index(c)),
+                v.clone.and_then(|c| self.clone_pose(c)),
+            ) else {
+                usable = false;
+                break;
+            };
+            let obs = BeaconObservation {
+                id,
+                range: v.range,
+                bearing: v.bearing,
+            };
+            match self.scalars(&obs, &pose, &tri.position) {
+                Ok(rows) => all.extend(rows.into_iter().map(|s| Scalar { pose_col: col, ..s })),
+                Err(_) => {
+                    usable = false;
+                    break;
+                }
+            }
+        }
+        let stats = self.stats;
+        if usable
+            && matches!(
+                self.apply_scalars(bi, &all, false),
+                ObservationOutcome::Updated { .. }
+            )
+        {
+            return true;
+        }
+        // Undo the insertion.
+        self.x = x0;
+        self.p = p0;
+        self.stats = stats;
+        self.stats.beacons_added -= 1;
+        self.slots.remove(&id);
+        self.ids.pop();
+        false
     }
 
     /// Adds a beacon triangulated from views whose poses are copies in the state (rows

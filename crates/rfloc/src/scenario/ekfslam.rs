@@ -15,12 +15,13 @@
 //!   odometry increment, the waypoint controller on the estimate, and sends VEL/RVEL (a command
 //!   every tick, which also feeds the robot's watchdog; the driver's wall-time PULSE is off).
 //!   Every [`SWEEP_EVERY_S`] of driving the robot stops (the seed sweeps at a standstill), the
-//!   `ScanRunner` turns the simulated stepper through 40 stops of 9° with one `ND` round per
-//!   stop, and each beacon's peak RSSI and fitted bearing update the filter (known association
-//!   by 64-bit address). A sweep takes [`SWEEP_SECONDS`] of simulated time: the probe ticks the
-//!   standing robot once every second round;
+//!   `ScanRunner` turns the simulated stepper through 40 stops of 9° with
+//!   [`ND_ROUNDS_PER_STOP`] `ND` rounds per stop, and each beacon's level and bearing, fitted
+//!   with the reflector's gain pattern, update the filter (known association by 64-bit
+//!   address). A sweep takes [`ROUND_SECONDS`] of simulated time per round (2 s for 40 rounds):
+//!   the probe ticks the standing robot once every second round;
 //! - truth and estimate are recorded at every SIP on the trial's *mission clock*: SIP periods
-//!   plus [`SWEEP_SECONDS`] per sweep, which is the emulator's clock less the settling ticks.
+//!   plus the sweeps' time, which is the emulator's clock less the settling ticks.
 //!   The true pose is the emulator's state after the tick. The trial ends at the scenario's
 //!   `duration_s` of mission time or when the last waypoint is reached (`successes`).
 //!
@@ -34,16 +35,19 @@
 //! reproducible too). The filter is told the same error model. The odometry-only error is reported beside the
 //! filter's (`odometry_rmse_m`, `odometry_rmse_theta_rad`).
 //!
-//! Measurement model given to the filter: eq. 2.7 with the scenario's `P_ref` and η; the
-//! peak RSSI of each sweep as the range measurement with σ² = shadowing² + fast fading² of
-//! the scenario's XBee model (3.16 dB, Table 4.1's spread); the fitted bearing with the
-//! estimator's variance plus (3°)². A beacon not yet in the map gets bearing-only views
-//! until the filter's delayed initialisation triangulates it (mapping it from its first RSSI
-//! range and bearing made the map, and through it the robot, worse). Beacon errors are
-//! averaged from the moment each beacon is mapped (`beacon_rmse_k_m`); `beacon_final_k_m` is
-//! the error at the end. The sweep measurements are also scored against the truth
-//! (`bearing_error_rms_deg`, `rssi_residual_*`, and their ratios to the σ given to the filter,
-//! `*_z_rms`).
+//! Measurement model given to the filter, as an operator would calibrate it: the sweep
+//! estimator fits the reflector's gain pattern (the scenario's, i.e. a calibrated pattern) to
+//! all 40 stops, with one reading's σ = fast fading and whole-dBm rounding (√(1 + 1/12) dB);
+//! eq. 2.7 with the scenario's `P_ref` and η; the fitted level of each sweep as an RSSI
+//! measurement with σ² = shadowing² + the fit's error (≈ 3.0 dB); the fitted bearing with the
+//! fit's Cramér–Rao variance plus (1°)². A beacon not yet in the map gets RSSI-and-bearing views,
+//! each view's pose kept in the filter state, until the filter's delayed initialisation
+//! triangulates it (largest σ ≤ [`DELAYED_INIT_MAX_STD_M`]) and adds it with every view as
+//! one update (`rfloc_ekfslam::DelayedInit`). Beacon errors are averaged from the moment each
+//! beacon is mapped (`beacon_rmse_k_m`); `beacon_final_k_m` is the error at the end. The sweep
+//! measurements are also scored against the truth (`bearing_error_rms_deg`, `rssi_residual_*`,
+//! and their ratios to the σ given to the filter, `*_z_rms`), and the pose against the filter's
+//! own covariance (`heading_z_rms`, `position_nees_per_dof`).
 //!
 //! Reproducibility. Every random draw is seeded from the trial seed (sensor streams of
 //! `SensorSuite`, the odometry slip), the emulated Pioneer moves only when the trial ticks it,
@@ -86,16 +90,18 @@ use slip::OdometrySlip;
 
 /// Driving time between two sweeps, simulated seconds.
 pub const SWEEP_EVERY_S: f64 = 3.0;
-/// Mission time one sweep counts for (40 stops × 50 ms), seconds.
-pub const SWEEP_SECONDS: f64 = 2.0;
-/// Ticks of the emulated Pioneer a sweep takes ([`SWEEP_SECONDS`] of SIP periods).
-const SWEEP_TICKS: u64 = 20;
+/// `ND` rounds per antenna stop.
+pub const ND_ROUNDS_PER_STOP: u32 = 1;
+/// Mission time one `ND` round (with the antenna step before it) counts for, seconds; a sweep
+/// of 40 stops with one round each takes 2 s.
+pub const ROUND_SECONDS: f64 = 0.05;
 /// Wheel slip σ (relative, per 10 ms substep) when the scenario sets no `drive.slip_sigma`.
 pub const DEFAULT_SLIP_SIGMA: f64 = 0.05;
 /// A triangulated beacon joins the map once the largest σ of its position is below this, m
 /// (the filter's default 1.5 m let a beacon seen only head-on, e.g. case II's (9, 2) on the
-/// first leg, in with a wrong range).
-const DELAYED_INIT_MAX_STD_M: f64 = 0.5;
+/// first leg, in with a wrong range; with the views' poses in the state waiting costs no
+/// information, and 0.3 m mapped every beacon in every trial, 0.2 m not).
+const DELAYED_INIT_MAX_STD_M: f64 = 0.3;
 /// SIPs the trial waits for after connecting before it starts driving (1 s).
 const SETTLE_SIPS: u64 = 10;
 /// SIP period of the emulated Pioneer, seconds.
@@ -104,8 +110,8 @@ const SIP_PERIOD_S: f64 = 0.1;
 const SUBSTEP_S: f64 = 0.01;
 /// Emulator wheel track, metres (2 / DiffConvFactor of a P3-DX-SH, the emulator's default).
 const EMULATOR_TRACK_M: f64 = 2.0 / 5.6;
-/// Added in quadrature to every bearing σ from the sweep estimator, degrees (pattern
-/// mismatch).
+/// Added in quadrature to every bearing σ from the sweep estimator, degrees (pattern and
+/// mounting calibration error).
 const BEARING_FLOOR_DEG: f64 = 1.0;
 
 /// Runs one trial.
@@ -187,7 +193,9 @@ struct Mission {
     odometry_slip: OdometrySlip,
     duration: f64,
     rssi_sigma_db: f64,
-    /// Mission clock, seconds: `ticks` SIP periods plus [`SWEEP_SECONDS`] per sweep.
+    /// Mission time of one sweep: its `ND` rounds × [`ROUND_SECONDS`].
+    sweep_seconds: f64,
+    /// Mission clock, seconds: `ticks` SIP periods plus `sweep_seconds` per sweep.
     t: f64,
     ticks: u64,
     dead_reckoning: Pose2,
@@ -197,6 +205,10 @@ struct Mission {
     /// Reconnections of the Pioneer driver (each rebases its odometry).
     base_reconnects: u64,
     odometry_heading_error: Rms,
+    /// The filter's pose error against its own covariance: heading error / σ_θ, and the
+    /// position NEES (2 degrees of freedom; `Rms` of its square root).
+    heading_z: Rms,
+    position_nees: Rms,
     /// Sweep measurements against the truth: bearing error (deg) and its ratio to the σ
     /// given to the filter; RSSI residual against eq. 2.7 (dB), its sum, and its ratio to σ.
     bearing_error: Rms,
@@ -217,16 +229,24 @@ impl Mission {
         base: &Arc<LockstepBase>,
     ) -> anyhow::Result<Mission> {
         let model = scenario.xbee_model();
-        // Shadowing (held per sweep) and fast fading (per reading) of the RSSI model: what an
-        // operator would calibrate from the seed's Table 4.1 spread.
-        let rssi_sigma_db = model.shadow_sigma_db.hypot(model.fast_sigma_db);
         let steps = scenario.spec.params.sweep_steps.unwrap_or(40).max(4);
+        // One reading's spread about its local mean: fast fading and, for whole-dBm readings,
+        // the rounding (uniform over 1 dB: variance 1/12).
+        let quantum = if model.integer_dbm { 1.0 / 12.0 } else { 0.0 };
+        let reading_sigma_db = (model.fast_sigma_db.powi(2) + quantum).sqrt().max(0.5);
+        // The fitted level of a sweep: its shadowing (held for the sweep, what an operator
+        // would calibrate from the seed's Table 4.1 spread) plus the fit's own error, about one
+        // reading's spread over the sweep's readings.
+        let readings = steps as f64 * f64::from(ND_ROUNDS_PER_STOP.max(1));
+        let rssi_sigma_db = model
+            .shadow_sigma_db
+            .hypot(reading_sigma_db / readings.sqrt());
         let scan = ScanConfig {
             plan: SweepPlanConfig {
                 step_deg: 360.0 / steps as f64,
                 ..SweepPlanConfig::default()
             },
-            probes_per_stop: 1,
+            probes_per_stop: ND_ROUNDS_PER_STOP,
             max_probe_failures: 3,
             estimator: EstimatorConfig {
                 path_loss: PathLossModel {
@@ -235,7 +255,7 @@ impl Mission {
                     eta: model.eta,
                     shadowing_sigma_db: model.shadow_sigma_db,
                 },
-                rssi_noise_sigma_db: model.fast_sigma_db.max(0.5),
+                rssi_noise_sigma_db: reading_sigma_db,
                 pattern: Some(GainPattern::CosinePower(CosinePowerPattern {
                     exponent: model.pattern.exponent,
                     back_lobe_db: model.pattern.back_lobe_db,
@@ -243,7 +263,10 @@ impl Mission {
                 ..EstimatorConfig::default()
             },
         };
-        let probe = NdRssiProbe::new(xbee, Arc::clone(base), steps as u64, SWEEP_TICKS);
+        let rounds = steps as u64 * u64::from(ND_ROUNDS_PER_STOP.max(1));
+        let sweep_seconds = rounds as f64 * ROUND_SECONDS;
+        let sweep_ticks = (sweep_seconds / SIP_PERIOD_S).round() as u64;
+        let probe = NdRssiProbe::new(xbee, Arc::clone(base), rounds, sweep_ticks);
         let runner = ScanRunner::new(stepper, probe, scan)
             .map_err(|e| anyhow::anyhow!("sweep plan: {e}"))?;
         let start = scenario.start_pose(trial);
@@ -293,6 +316,7 @@ impl Mission {
             ),
             duration: scenario.spec.duration_s,
             rssi_sigma_db,
+            sweep_seconds,
             t: 0.0,
             ticks: 0,
             dead_reckoning: start,
@@ -301,6 +325,8 @@ impl Mission {
             sweeps: 0,
             base_reconnects: 0,
             odometry_heading_error: Rms::default(),
+            heading_z: Rms::default(),
+            position_nees: Rms::default(),
             bearing_error: Rms::default(),
             bearing_z: Rms::default(),
             rssi_residual: Rms::default(),
@@ -314,6 +340,16 @@ impl Mission {
         let est = self.pipeline.filter().pose();
         self.rec.truth(self.t, truth);
         self.rec.estimate(self.t, est);
+        let cov = self.pipeline.filter().pose_covariance();
+        if cov[(2, 2)] > 1e-12 {
+            self.heading_z
+                .add(angle_diff(est.theta, truth.theta) / cov[(2, 2)].sqrt());
+        }
+        let pxy = cov.fixed_view::<2, 2>(0, 0).into_owned();
+        if let Some(inv) = pxy.try_inverse().filter(|_| pxy.determinant() > 1e-18) {
+            let e = nalgebra::Vector2::new(est.x - truth.x, est.y - truth.y);
+            self.position_nees.add(e.dot(&(inv * e)).max(0.0).sqrt());
+        }
         self.odometry_error
             .add(self.dead_reckoning.distance(&truth));
         self.odometry_heading_error
@@ -353,7 +389,7 @@ impl Mission {
             let ground = o.pose.relative_to(&prev_odo);
             prev_odo = o.pose;
             self.ticks += 1;
-            self.t = self.ticks as f64 * SIP_PERIOD_S + self.sweeps as f64 * SWEEP_SECONDS;
+            self.t = self.ticks as f64 * SIP_PERIOD_S + self.sweeps as f64 * self.sweep_seconds;
             let delta = self.odometry_slip.apply(&ground, SIP_PERIOD_S);
             self.dead_reckoning = self.dead_reckoning.compose(&delta);
             self.pipeline.handle(&self.odometry_event(o.v, o.w));
@@ -369,11 +405,11 @@ impl Mission {
                         commanded = true;
                     }
                     Request::Sweep { heading_rad } => {
-                        // The sweep takes SWEEP_TICKS ticks of the standing robot (the probe
-                        // spreads them over its rounds); the mission clock counts them as the
-                        // sweep's SWEEP_SECONDS.
+                        // The sweep takes its ticks of the standing robot (the probe spreads
+                        // them over its rounds); the mission clock counts them as the sweep's
+                        // `sweep_seconds`.
                         let result = self.sweep(heading_rad, state.truth).await?;
-                        self.t += SWEEP_SECONDS;
+                        self.t += self.sweep_seconds;
                         self.pipeline.handle(&DeviceEvent::Sweep {
                             device: "xbee".into(),
                             t: self.t,
@@ -477,10 +513,14 @@ impl Mission {
             ("bearing_z_rms", self.bearing_z),
             ("rssi_residual_rms_db", self.rssi_residual),
             ("rssi_z_rms", self.rssi_z),
+            ("heading_z_rms", self.heading_z),
         ] {
             if let Some(v) = rms.value() {
                 self.rec.metric(name, v);
             }
+        }
+        if let Some(v) = self.position_nees.value() {
+            self.rec.metric("position_nees_per_dof", v * v / 2.0);
         }
         if self.rssi_residual.n > 0 {
             self.rec.metric(
