@@ -78,3 +78,48 @@ pub fn vi_model(states: usize) -> (TransitionModel, Vec<Vec<f64>>) {
         r,
     )
 }
+
+/// The seed 000 world for the tag-map benchmarks: 800 tags in 5 m × 5 m, 1000 survey poses,
+/// noise-free snapshots under `model` (reads at or above its threshold).
+pub fn tag_survey(
+    model: &rfloc_snapshot::ReadModel,
+) -> (
+    Vec<(f64, f64)>,
+    Vec<(rfloc_snapshot::Snapshot, rfloc_pose::Pose2)>,
+) {
+    let mut rng = Lcg::new(777);
+    let tags: Vec<(f64, f64)> = (0..800)
+        .map(|_| (5.0 * rng.next_f64(), 5.0 * rng.next_f64()))
+        .collect();
+    let survey = (0..1000)
+        .map(|_| {
+            let p = rfloc_pose::Pose2::new(
+                0.3 + 4.4 * rng.next_f64(),
+                0.3 + 4.4 * rng.next_f64(),
+                std::f64::consts::TAU * rng.next_f64(),
+            );
+            (tag_snapshot(model, &tags, &p), p)
+        })
+        .collect();
+    (tags, survey)
+}
+
+/// What the reader sees from `pose` (noise-free).
+pub fn tag_snapshot(
+    model: &rfloc_snapshot::ReadModel,
+    tags: &[(f64, f64)],
+    pose: &rfloc_pose::Pose2,
+) -> rfloc_snapshot::Snapshot {
+    let a = model.antenna(pose);
+    let (sin, cos) = a.theta.sin_cos();
+    rfloc_snapshot::Snapshot::from_reads(tags.iter().enumerate().filter_map(|(i, (x, y))| {
+        let (wx, wy) = (x - a.x, y - a.y);
+        let m = model.mean_rss(cos * wx + sin * wy, -sin * wx + cos * wy);
+        (m >= model.threshold).then(|| {
+            (
+                rfloc_snapshot::TagId::new(vec![(i >> 8) as u8, (i & 0xff) as u8]),
+                m,
+            )
+        })
+    }))
+}
