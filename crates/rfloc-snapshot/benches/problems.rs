@@ -79,14 +79,15 @@ pub fn vi_model(states: usize) -> (TransitionModel, Vec<Vec<f64>>) {
     )
 }
 
-/// The seed 000 world for the tag-map benchmarks: 800 tags in 5 m × 5 m, 1000 survey poses,
-/// noise-free snapshots under `model` (reads at or above its threshold).
-pub fn tag_survey(
-    model: &rfloc_snapshot::ReadModel,
-) -> (
+/// Tag positions and survey samples of a tag-map benchmark world.
+pub type TagWorld = (
     Vec<(f64, f64)>,
     Vec<(rfloc_snapshot::Snapshot, rfloc_pose::Pose2)>,
-) {
+);
+
+/// The seed 000 world for the tag-map benchmarks: 800 tags in 5 m × 5 m, 1000 survey poses,
+/// noise-free snapshots under `model` (reads at or above its threshold).
+pub fn tag_survey(model: &rfloc_snapshot::ReadModel) -> TagWorld {
     let mut rng = Lcg::new(777);
     let tags: Vec<(f64, f64)> = (0..800)
         .map(|_| (5.0 * rng.next_f64(), 5.0 * rng.next_f64()))
