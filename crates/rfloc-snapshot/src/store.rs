@@ -59,17 +59,31 @@ pub fn write_atomic(
     Ok(())
 }
 
+/// Serialises `value` as JSON and writes it atomically.
+fn save_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), SnapshotError> {
+    let bytes = serde_json::to_vec(value).map_err(|source| SnapshotError::Format {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    write_atomic(path, |f| f.write_all(&bytes).map_err(io_err(path)))
+}
+
+/// Reads and parses a JSON file.
+fn load_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, SnapshotError> {
+    let bytes = fs::read(path).map_err(io_err(path))?;
+    serde_json::from_slice(&bytes).map_err(|source| SnapshotError::Format {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
 impl SnapshotDatabase {
     /// Saves the database as JSON, atomically (see the module documentation).
     ///
     /// # Errors
     /// [`SnapshotError::Io`] or [`SnapshotError::Format`].
     pub fn save(&self, path: &Path) -> Result<(), SnapshotError> {
-        let bytes = serde_json::to_vec(self).map_err(|source| SnapshotError::Format {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        write_atomic(path, |f| f.write_all(&bytes).map_err(io_err(path)))
+        save_json(path, self)
     }
 
     /// Loads a database saved by [`SnapshotDatabase::save`].
@@ -79,12 +93,7 @@ impl SnapshotDatabase {
     /// [`SnapshotError::Version`] for another layout version, [`SnapshotError::InvalidModel`]
     /// when the transition model does not match the states.
     pub fn load(path: &Path) -> Result<Self, SnapshotError> {
-        let bytes = fs::read(path).map_err(io_err(path))?;
-        let mut db: SnapshotDatabase =
-            serde_json::from_slice(&bytes).map_err(|source| SnapshotError::Format {
-                path: path.to_path_buf(),
-                source,
-            })?;
+        let mut db: SnapshotDatabase = load_json(path)?;
         if db.format_version != FORMAT_VERSION {
             return Err(SnapshotError::Version {
                 found: db.format_version,
@@ -109,11 +118,7 @@ impl crate::tagmap::TagMap {
     /// # Errors
     /// [`SnapshotError::Io`] or [`SnapshotError::Format`].
     pub fn save(&self, path: &Path) -> Result<(), SnapshotError> {
-        let bytes = serde_json::to_vec(self).map_err(|source| SnapshotError::Format {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        write_atomic(path, |f| f.write_all(&bytes).map_err(io_err(path)))
+        save_json(path, self)
     }
 
     /// Loads a map saved by [`crate::tagmap::TagMap::save`] and rebuilds its index.
@@ -123,12 +128,7 @@ impl crate::tagmap::TagMap {
     /// [`SnapshotError::InvalidModel`] for a tag with a non-finite position or a model without
     /// coefficients.
     pub fn load(path: &Path) -> Result<Self, SnapshotError> {
-        let bytes = fs::read(path).map_err(io_err(path))?;
-        let mut map: crate::tagmap::TagMap =
-            serde_json::from_slice(&bytes).map_err(|source| SnapshotError::Format {
-                path: path.to_path_buf(),
-                source,
-            })?;
+        let mut map: crate::tagmap::TagMap = load_json(path)?;
         if map.model.coeffs.is_empty() {
             return Err(SnapshotError::InvalidModel(
                 "tag map: read model without coefficients".into(),
@@ -155,11 +155,7 @@ impl crate::survey::Survey {
     /// # Errors
     /// [`SnapshotError::Io`] or [`SnapshotError::Format`].
     pub fn save(&self, path: &Path) -> Result<(), SnapshotError> {
-        let bytes = serde_json::to_vec(self).map_err(|source| SnapshotError::Format {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        write_atomic(path, |f| f.write_all(&bytes).map_err(io_err(path)))
+        save_json(path, self)
     }
 
     /// Loads a survey saved by [`crate::survey::Survey::save`].
@@ -169,12 +165,7 @@ impl crate::survey::Survey {
     /// [`SnapshotError::Version`] for another layout version, [`SnapshotError::InvalidModel`]
     /// for a pose that is not finite.
     pub fn load(path: &Path) -> Result<Self, SnapshotError> {
-        let bytes = fs::read(path).map_err(io_err(path))?;
-        let survey: crate::survey::Survey =
-            serde_json::from_slice(&bytes).map_err(|source| SnapshotError::Format {
-                path: path.to_path_buf(),
-                source,
-            })?;
+        let survey: crate::survey::Survey = load_json(path)?;
         if survey.format_version != crate::survey::SURVEY_FORMAT_VERSION {
             return Err(SnapshotError::Version {
                 found: survey.format_version,

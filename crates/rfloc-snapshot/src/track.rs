@@ -289,21 +289,7 @@ impl TrackFilter {
             explained += *w * l / peak.max(1e-300);
             *w *= l;
         }
-        if self.w_slow <= 0.0 {
-            self.w_slow = explained;
-            self.w_fast = explained;
-        } else {
-            self.w_slow += c.alpha_slow * (explained - self.w_slow);
-            self.w_fast += c.alpha_fast * (explained - self.w_fast);
-        }
-        if !normalise(&mut self.weights) {
-            let m = self.weights.len().max(1) as f64;
-            self.weights.iter_mut().for_each(|w| *w = 1.0 / m);
-        }
-        let ess = 1.0 / self.weights.iter().map(|w| w * w).sum::<f64>().max(1e-300);
-        if ess < 0.5 * self.weights.len() as f64 {
-            self.resample(rng);
-        }
+        self.finish_update(explained, rng);
         // Sensor resetting: redraw a few particles near the matches when the cloud explains
         // the snapshots worse than it used to.
         let n = self.poses.len();
@@ -390,6 +376,14 @@ impl TrackFilter {
             explained += *w * (ll / (*terms).max(1) as f64).exp();
             *w *= (ll - best).exp();
         }
+        self.finish_update(explained, rng);
+    }
+
+    /// After the weights were multiplied by a snapshot's likelihood: the short- and long-term
+    /// averages of how well the cloud explained it (`explained`), normalisation, and
+    /// resampling when the effective sample size is below half.
+    fn finish_update<R: Rng + ?Sized>(&mut self, explained: f64, rng: &mut R) {
+        let c = &self.config;
         if self.w_slow <= 0.0 {
             self.w_slow = explained;
             self.w_fast = explained;

@@ -53,6 +53,78 @@ fn learned_database() -> SnapshotDatabase {
     SnapshotDatabase::learn(&obs, &config).unwrap()
 }
 
+/// A Pioneer emulator on a pty, an Alien reader emulator (password [`SECRET`], tags from
+/// `field`) on loopback TCP, the password file and a robot file for both in `dir`, with
+/// `estimator` added to the snapshot pipeline's table.
+struct UhfRig {
+    config: std::path::PathBuf,
+    pose_port: u16,
+    _slave: SerialStream,
+}
+
+impl UhfRig {
+    async fn start(dir: &std::path::Path, field: rfloc_alien::TagField, estimator: &str) -> Self {
+        std::fs::write(dir.join("alien.pw"), format!("{SECRET}\n")).unwrap();
+        let (master, slave) = SerialStream::pair().unwrap();
+        let base_path = slave.name().unwrap();
+        let mut robot = RobotEmulator::new(RobotConfig::default());
+        tokio::spawn(async move {
+            let _ = robot.serve(master).await;
+        });
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let reader_addr = listener.local_addr().unwrap();
+        let options = EmulatorOptions {
+            password: SECRET.into(),
+            ..EmulatorOptions::default()
+        };
+        tokio::spawn(async move {
+            let _ = ReaderEmulator::new(field, options)
+                .serve_listener(listener)
+                .await;
+        });
+        let pose_port = common::free_port();
+        let config = dir.join("robot.toml");
+        std::fs::write(
+            &config,
+            format!(
+                r#"[robot]
+name = "uhf-e2e"
+
+[[device]]
+name = "base"
+link = {{ kind = "serial", path = "{base_path}", baud = 9600 }}
+[device.driver]
+kind = "aria"
+
+[[device]]
+name = "uhf"
+link = {{ kind = "tcp", address = "{reader_addr}" }}
+[device.driver]
+kind = "alien"
+password_file = "alien.pw"
+reads_per_snapshot = 2
+
+[estimator]
+pipeline = "snapshot"
+{estimator}
+[pose]
+tcp = "127.0.0.1:{pose_port}"
+
+[state]
+dir = "{}"
+"#,
+                dir.display()
+            ),
+        )
+        .unwrap();
+        Self {
+            config,
+            pose_port,
+            _slave: slave,
+        }
+    }
+}
+
 async fn wait_pose_near<R: tokio::io::AsyncBufRead + Unpin>(
     lines: &mut tokio::io::Lines<R>,
     x: f64,
@@ -81,66 +153,15 @@ async fn uhf_daemon_localises_on_the_learned_database() {
     learned_database()
         .save(&dir.path().join("snapshot-db.json"))
         .unwrap();
-    std::fs::write(dir.path().join("alien.pw"), format!("{SECRET}\n")).unwrap();
-
-    let (master, slave) = SerialStream::pair().unwrap();
-    let base_path = slave.name().unwrap();
-    let mut robot = RobotEmulator::new(RobotConfig::default());
-    tokio::spawn(async move {
-        let _ = robot.serve(master).await;
-    });
-
     let seen = Arc::new(Mutex::new(1usize));
     let field_seen = Arc::clone(&seen);
-    let field = Arc::new(move || place(*field_seen.lock().unwrap()));
-    let options = EmulatorOptions {
-        password: SECRET.into(),
-        ..EmulatorOptions::default()
-    };
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let reader_addr = listener.local_addr().unwrap();
-    tokio::spawn(async move {
-        let _ = ReaderEmulator::new(field, options)
-            .serve_listener(listener)
-            .await;
-    });
-
-    let pose_port = common::free_port();
-    let cfg = dir.path().join("robot.toml");
-    std::fs::write(
-        &cfg,
-        format!(
-            r#"[robot]
-name = "uhf-e2e"
-
-[[device]]
-name = "base"
-link = {{ kind = "serial", path = "{base_path}", baud = 9600 }}
-[device.driver]
-kind = "aria"
-
-[[device]]
-name = "uhf"
-link = {{ kind = "tcp", address = "{reader_addr}" }}
-[device.driver]
-kind = "alien"
-password_file = "alien.pw"
-reads_per_snapshot = 2
-
-[estimator]
-pipeline = "snapshot"
-
-[pose]
-tcp = "127.0.0.1:{pose_port}"
-
-[state]
-dir = "{}"
-"#,
-            dir.path().display()
-        ),
+    let rig = UhfRig::start(
+        dir.path(),
+        Arc::new(move || place(*field_seen.lock().unwrap())),
+        "",
     )
-    .unwrap();
-
+    .await;
+    let (cfg, pose_port) = (rig.config.clone(), rig.pose_port);
     let daemon = common::Daemon::start(&cfg, "debug");
     let mut lines = daemon.pose_lines(pose_port).await;
     let at_b = wait_pose_near(&mut lines, 2.0, 1.0).await;
@@ -155,7 +176,7 @@ dir = "{}"
         !log.contains(SECRET),
         "the reader password appeared in the log"
     );
-    drop(slave);
+    drop(rig);
 }
 
 /// Tags at seeded random places in a 4 m × 4 m room.
@@ -251,15 +272,7 @@ async fn uhf_daemon_localises_on_the_tag_map_and_recovers_from_a_kidnap() {
     )
     .save(&dir.path().join("tag-map.json"))
     .unwrap();
-    std::fs::write(dir.path().join("alien.pw"), format!("{SECRET}\n")).unwrap();
-
     // The robot stands still; the reader sees the room from `truth`.
-    let (master, slave) = SerialStream::pair().unwrap();
-    let base_path = slave.name().unwrap();
-    let mut robot = RobotEmulator::new(RobotConfig::default());
-    tokio::spawn(async move {
-        let _ = robot.serve(master).await;
-    });
     let a = Pose2::new(1.2, 2.5, 0.6);
     let b = Pose2::new(3.0, 1.0, -2.2);
     let truth = Arc::new(Mutex::new(a));
@@ -269,56 +282,13 @@ async fn uhf_daemon_localises_on_the_tag_map_and_recovers_from_a_kidnap() {
         let pose = *field_truth.lock().unwrap();
         room_read(&model, &tags, &pose, &mut field_rng.lock().unwrap())
     });
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let reader_addr = listener.local_addr().unwrap();
-    let options = EmulatorOptions {
-        password: SECRET.into(),
-        ..EmulatorOptions::default()
-    };
-    tokio::spawn(async move {
-        let _ = ReaderEmulator::new(field, options)
-            .serve_listener(listener)
-            .await;
-    });
-
-    let pose_port = common::free_port();
-    let cfg = dir.path().join("robot.toml");
-    std::fs::write(
-        &cfg,
-        format!(
-            r#"[robot]
-name = "uhf-tagmap-e2e"
-
-[[device]]
-name = "base"
-link = {{ kind = "serial", path = "{base_path}", baud = 9600 }}
-[device.driver]
-kind = "aria"
-
-[[device]]
-name = "uhf"
-link = {{ kind = "tcp", address = "{reader_addr}" }}
-[device.driver]
-kind = "alien"
-password_file = "alien.pw"
-reads_per_snapshot = 2
-
-[estimator]
-pipeline = "snapshot"
-survey = "survey.json"
-tag_map = "tag-map.json"
-
-[pose]
-tcp = "127.0.0.1:{pose_port}"
-
-[state]
-dir = "{}"
-"#,
-            dir.path().display()
-        ),
+    let rig = UhfRig::start(
+        dir.path(),
+        field,
+        "survey = \"survey.json\"\ntag_map = \"tag-map.json\"\n",
     )
-    .unwrap();
-
+    .await;
+    let (cfg, pose_port) = (rig.config.clone(), rig.pose_port);
     let session = dir.path().join("session");
     let daemon = common::Daemon::record(&cfg, &session, "debug");
     let mut lines = daemon.pose_lines(pose_port).await;
@@ -342,7 +312,7 @@ dir = "{}"
     let (status, log) = daemon.terminate().await;
     assert!(status.success(), "{log}");
     assert!(log.contains("tag map loaded"), "{log}");
-    drop(slave);
+    drop(rig);
 
     // The recorded reader link: the password never reached the file, each averaged snapshot is
     // marked, and the session replays through the same pipeline to the same two places.
