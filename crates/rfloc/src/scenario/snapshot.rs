@@ -62,8 +62,8 @@ use rfloc_sim::Scenario;
 use rfloc_snapshot::{
     Action, ActionModel, ActionTable, CycleBreaker, ExplorationConfig, ExplorationInput,
     ExplorationPolicy, FilterConfig, FingerprintMap, LatticeConfig, LatticePlan, LearnConfig,
-    Observation, ReadModel, Snapshot, SnapshotDatabase, StateFilter, Survey, TagId, TagMap, TagMapConfig,
-    TrackConfig, TrackFilter,
+    Observation, ReadModel, Snapshot, SnapshotDatabase, StateFilter, Survey, TagId, TagMap,
+    TagMapConfig, TrackConfig, TrackFilter,
 };
 
 use super::SimOptions;
@@ -508,8 +508,7 @@ pub async fn run_trial(
     .save(&survey_path)
     .with_context(|| format!("saving {}", survey_path.display()))?;
     let survey = Arc::new(
-        Survey::load(&survey_path)
-            .with_context(|| format!("loading {}", survey_path.display()))?,
+        Survey::load(&survey_path).with_context(|| format!("loading {}", survey_path.display()))?,
     );
     // The fine localisation map: the survey's snapshots as fingerprints.
     let fingerprints = survey.fingerprints(config.distance);
