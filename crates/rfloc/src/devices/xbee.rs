@@ -349,14 +349,15 @@ async fn serve_sweeps<T: AsyncRead + AsyncWrite + Unpin + Send>(
     }
 }
 
-/// `mark sweep start heading_rad=…` (text after `ev `).
+/// `mark sweep start heading_rad=…` (text after `ev `). Angles are printed in the shortest form
+/// that reads back to the same `f64`, so a replay computes with exactly the live values.
 fn sweep_start_mark(heading_rad: f64) -> String {
-    format!("mark sweep start heading_rad={heading_rad:.6}")
+    format!("mark sweep start heading_rad={heading_rad}")
 }
 
 /// `mark sweep end antenna_rad=a0,a1,…`; no angles for an abandoned sweep.
 fn sweep_end_mark(angles: &[f64]) -> String {
-    let list: Vec<String> = angles.iter().map(|a| format!("{a:.6}")).collect();
+    let list: Vec<String> = angles.iter().map(|a| format!("{a}")).collect();
     format!("mark sweep end antenna_rad={}", list.join(","))
 }
 
