@@ -28,9 +28,9 @@ use crate::events::DeviceEvent;
 use crate::pipeline::Pipeline;
 
 /// A tag-map pose is a `fix` when the heaviest mode holds this much of the weight ...
-const FIX_MASS: f64 = 0.8;
+pub const FIX_MASS: f64 = 0.8;
 /// ... and its particles' RMS distance from the estimate is at most this, metres.
-const FIX_SPREAD_M: f64 = 0.3;
+pub const FIX_SPREAD_M: f64 = 0.3;
 /// An odometry step longer than this between two snapshots is a rebase (the base reconnected
 /// and its odometry restarted), not motion, metres.
 const MAX_ODOMETRY_STEP_M: f64 = 2.0;
@@ -157,6 +157,25 @@ fn load_map_localiser(
 }
 
 impl SnapshotPipeline {
+    /// A pipeline on a tag map and survey already in memory (what a simulated trial has just
+    /// learned and reloaded), its filter's draws seeded with `seed`.
+    #[must_use]
+    pub fn on_tag_map(tags: TagMap, survey: &Survey, seed: u64) -> Self {
+        let prints = survey.fingerprints(LearnConfig::default().distance);
+        Self {
+            localiser: Some(Localiser::Map(Box::new(MapLocaliser {
+                tags,
+                prints,
+                filter: TrackFilter::new(TrackConfig::default()),
+                rng: ChaCha8Rng::seed_from_u64(seed),
+                odometry: None,
+                at_last_snapshot: None,
+            }))),
+            path: PathBuf::from("(in memory)"),
+            warned: false,
+        }
+    }
+
     /// Loads the learned files named in the settings (relative paths from `state_dir`): the
     /// survey and tag map when both are set, the cluster database otherwise.
     #[must_use]

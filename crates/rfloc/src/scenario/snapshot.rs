@@ -23,15 +23,17 @@
 //!    steps that did not stall) and a **lattice plan** (`LatticePlan`: value iteration on a
 //!    0.15 m × 11.25° lattice over the explored floor; steps near its edge or near stall places
 //!    cost more) to the goal point.
-//! 3. **Navigation**: each step reads a snapshot, moves a particle filter (`TrackFilter`) by the
-//!    odometry increment and weighs it by the snapshot against the fine map; the estimate's
-//!    best lattice action is taken unless the `CycleBreaker` sees a repeat (the robot back at a
-//!    place/heading for the [`CYCLE_REPEATS`]th time in [`CYCLE_WINDOW`] decisions, or reversing
-//!    its turn there), then an untried action. A wheel stall turns the robot for
-//!    [`NAV_STALL_TURN_STEPS`] steps. The robot stops when the estimate is within
-//!    [`GOAL_FRACTION`] of the goal tolerance of the goal after [`STOP_CONFIDENT_STEPS`] steps of
-//!    a tight ([`STOP_SPREAD_M`], [`STOP_MASS`]) and steady ([`STOP_JUMP_M`]) cloud, or after
-//!    `navigation_steps` steps. The particle filter starts from the first snapshot (global
+//! 3. **Navigation**: each step reads a snapshot and hands it, with the base's odometry, to the
+//!    daemon's own `SnapshotPipeline` on the reloaded survey and tag map (the localiser `rfloc
+//!    run` uses with `[estimator] survey` and `tag_map`: a particle filter moved by the odometry
+//!    increment and weighed by the tag map); the published pose's best lattice action is taken
+//!    unless the `CycleBreaker` sees a repeat (the robot back at a place/heading for the
+//!    [`CYCLE_REPEATS`]th time in [`CYCLE_WINDOW`] decisions, or reversing its turn there), then
+//!    an untried action. A wheel stall turns the robot for [`NAV_STALL_TURN_STEPS`] steps. The
+//!    robot stops when the estimate is within [`GOAL_FRACTION`] of the goal tolerance of the
+//!    goal after [`STOP_CONFIDENT_STEPS`] steps of a fix with a tight ([`STOP_SPREAD_M`]) and
+//!    steady ([`STOP_JUMP_M`]) cloud, or after `navigation_steps` steps. The particle filter
+//!    starts from the first snapshot (global
 //!    localisation), not from the odometry pose the robot ended exploration with.
 //!
 //! Recorded: truth and the particle filter's estimate at every navigation step (the seed-style
@@ -56,7 +58,7 @@ use std::time::Instant;
 use anyhow::Context;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use rfloc_pose::Pose2;
+use rfloc_pose::{EstimateMode, Pose2};
 use rfloc_sim::recorder::TrialRecorder;
 use rfloc_sim::Scenario;
 use rfloc_snapshot::{
@@ -67,6 +69,8 @@ use rfloc_snapshot::{
 };
 
 use super::SimOptions;
+use crate::events::DeviceEvent;
+use crate::pipeline::{Pipeline, SnapshotPipeline};
 
 mod actuation;
 mod reflex;
@@ -92,10 +96,9 @@ pub const WHEEL_SLIP: f64 = 0.02;
 pub const STALL_TURN_STEPS: usize = 18;
 /// The robot stops when its estimate is within this fraction of the goal tolerance of the goal.
 pub const GOAL_FRACTION: f64 = 0.5;
-/// ... and the particle cloud's spread is at most this (m) ...
+/// ... and the published pose is a fix (its mode holds most of the particles' weight,
+/// `pipeline::snapshot::FIX_MASS`) whose spread is at most this (m) ...
 pub const STOP_SPREAD_M: f64 = 0.2;
-/// ... with at least this fraction of the weight in the estimate's mode ...
-pub const STOP_MASS: f64 = 0.9;
 /// ... without the estimate jumping by more than this (m) from one step to the next ...
 pub const STOP_JUMP_M: f64 = 0.4;
 /// ... for this many consecutive steps.
@@ -574,8 +577,9 @@ pub async fn run_trial(
     .await
     .map_err(|e| anyhow::anyhow!("planning task failed: {e}"))?;
 
-    // 3. Navigation.
-    let mut track = TrackFilter::new(TrackConfig::default());
+    // 3. Navigation. Localisation is the daemon's own snapshot pipeline on the reloaded tag
+    // map and survey, fed the base's odometry and each snapshot as device events.
+    let mut localiser = SnapshotPipeline::on_tag_map(tag_map.clone(), &survey, seed);
     let mut cycles = CycleBreaker::new(CYCLE_WINDOW, CYCLE_REPEATS);
     let mut nav_reflex = StallReflex::new(NAV_STALL_TURN_STEPS);
     let mut filter = StateFilter::new(&db, FilterConfig::default());
@@ -593,7 +597,7 @@ pub async fn run_trial(
     let mut steps_taken = 0usize;
     let mut nav_stalls = 0u32;
     let mut nav_log =
-        String::from("step,x,y,theta,est_x,est_y,est_theta,spread,mass,action,reason\n");
+        String::from("step,x,y,theta,est_x,est_y,est_theta,spread,mode,action,reason\n");
     let mut replay: Vec<(Option<Action>, Snapshot, Pose2)> = Vec::new();
     let mut track_replay: Vec<(Pose2, Snapshot, Pose2)> = Vec::new();
     let start_distance = dist(&rig.truth(), &goal_pose);
@@ -605,9 +609,27 @@ pub async fn run_trial(
         let snapshot: Snapshot = rig.read_snapshot().await?;
         let odom = rig.odometry_pose();
         let delta = odom.relative_to(&last_odom);
-        track.predict(&delta, &mut rng);
         last_odom = odom;
-        track.update_with_map(&tag_map, &fingerprints, &snapshot, &mut rng);
+        let now = rig.sim_time();
+        localiser.handle(&DeviceEvent::Odometry {
+            device: "base".into(),
+            t: now,
+            pose: odom,
+            v: 0.0,
+            w: 0.0,
+        });
+        let published = localiser.handle(&DeviceEvent::UhfSnapshot {
+            device: "uhf".into(),
+            t: now,
+            tags: snapshot.iter().map(|(id, r)| (id.to_string(), r)).collect(),
+        });
+        // The published pose with the spread of its mode (RMS distance of its particles).
+        let tracked = published.map(|e| {
+            let spread = (e.covariance[(0, 0)] + e.covariance[(1, 1)])
+                .max(0.0)
+                .sqrt();
+            (e.pose, spread, e.mode)
+        });
         if let Some(a) = prev {
             filter.predict(&db, a);
             odom_filter.predict(&odom_db, a);
@@ -616,8 +638,7 @@ pub async fn run_trial(
         odom_filter.update(&odom_db, &snapshot);
         let t = step as f64;
         let hist = filter.estimate(&db, t);
-        let tracked = track.estimate();
-        let est = tracked.map_or(hist.pose, |e| e.pose);
+        let est = tracked.map_or(hist.pose, |e| e.0);
         let truth = rig.truth();
         rec.truth(t, truth);
         rec.estimate(t, est);
@@ -634,9 +655,11 @@ pub async fn run_trial(
         steps_taken = step;
         // Confident: a tight cloud that did not jump since the last step (a step moves ≤ 0.3 m).
         let steady = last_est.is_some_and(|p: Pose2| dist(&p, &est) <= STOP_JUMP_M);
-        last_est = tracked.map(|e| e.pose);
-        let confident =
-            steady && tracked.is_some_and(|e| e.spread <= STOP_SPREAD_M && e.mass >= STOP_MASS);
+        last_est = tracked.map(|e| e.0);
+        let confident = steady
+            && tracked.is_some_and(|(_, spread, mode)| {
+                mode == EstimateMode::Fix && spread <= STOP_SPREAD_M
+            });
         confident_steps = if confident { confident_steps + 1 } else { 0 };
         if confident_steps >= STOP_CONFIDENT_STEPS && dist(&est, &goal_pose) <= goal_radius {
             declared = Some("estimate");
@@ -646,9 +669,9 @@ pub async fn run_trial(
             break;
         }
         let (action, reason) = match tracked {
-            Some(e) => {
-                let ranked = lattice.ranked(&e.pose);
-                cycles.choose(&e.pose, &ranked)
+            Some((pose, _, _)) => {
+                let ranked = lattice.ranked(&pose);
+                cycles.choose(&pose, &ranked)
             }
             None => {
                 let input = ExplorationInput {
@@ -659,9 +682,18 @@ pub async fn run_trial(
             }
         };
         let action = nav_reflex.override_action(action);
-        let (spread, mass) = tracked.map_or((f64::NAN, 0.0), |e| (e.spread, e.mass));
+        let (spread, mode) = tracked.map_or((f64::NAN, "none"), |(_, s, m)| {
+            (
+                s,
+                match m {
+                    EstimateMode::Fix => "fix",
+                    EstimateMode::Degraded => "degraded",
+                    EstimateMode::NoFix => "no_fix",
+                },
+            )
+        });
         nav_log.push_str(&format!(
-            "{step},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{spread:.3},{mass:.3},{action:?},{reason}\n",
+            "{step},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{spread:.3},{mode},{action:?},{reason}\n",
             truth.x, truth.y, truth.theta, est.x, est.y, est.theta
         ));
         let cmd = act.drive_command(act.noisy(action, &mut rng));
