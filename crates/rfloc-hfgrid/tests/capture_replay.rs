@@ -1,5 +1,5 @@
 //! Replays the reference captures of seed 002's initialisation turn
-//! (`/work/shared/captures/kts-seed002-turn-h{0,90,180,-90}/kts.cap`) through a minimal line
+//! (`tests/captures/kts-seed002-turn-h{0,90,180,-90}/kts.cap` in the workspace) through a minimal line
 //! extraction (the KTS driver lives elsewhere) and compares the estimate with `truth.csv`.
 //!
 //! Extraction: rx bytes are concatenated; a line ends at `\n`; `\r` and the literal `<\r>` the
@@ -19,7 +19,7 @@ use rfloc_hfgrid::{
 use rfloc_pose::{angle_diff, Pose2};
 
 fn captures_dir() -> PathBuf {
-    PathBuf::from("/work/shared/captures")
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../tests/captures")
 }
 
 fn parse_scan_line(line: &str) -> Option<TagReading> {

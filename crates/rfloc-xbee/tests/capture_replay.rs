@@ -1,4 +1,4 @@
-//! Replay of the reference capture `shared/captures/xbee-nd-api2/xbee.cap` (a coordinator in
+//! Replay of the reference capture `tests/captures/xbee-nd-api2/xbee.cap` (a coordinator in
 //! API mode 2 answering `ND` at every 45° step over three sweeps, with line noise, responses
 //! split at random points, one bad checksum and one truncated response).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
@@ -15,14 +15,14 @@ use rfloc_xbee::{
 };
 
 fn capture_path() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/captures/xbee-nd-api2/xbee.cap")
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../tests/captures/xbee-nd-api2/xbee.cap")
 }
 
 fn load_capture() -> Capture {
     let path = capture_path();
     assert!(
         path.is_file(),
-        "reference capture missing: {} (expected the shared references beside the workspace)",
+        "reference capture missing: {}",
         path.display()
     );
     Capture::from_path(&path).unwrap()
@@ -84,6 +84,17 @@ fn capture_replay_through_codec() {
     // four beacons answer except where a response was damaged on the wire.
     let expected = expected_rounds();
     assert_eq!(rounds, expected);
+    // The same rounds as the driver-level golden file beside the capture (`RFLOC_BLESS=1`
+    // rewrites it), which the workspace's replay regression test requires of every session.
+    let mut text = String::from("# ND rounds of xbee.cap: frame ID, then the NIs that answered\n");
+    for r in &rounds {
+        text.push_str(&format!("0x{:02X} {}\n", r.frame_id, r.nis.join(" ")));
+    }
+    let golden = capture_path().with_file_name("xbee.rounds.golden");
+    if std::env::var_os("RFLOC_BLESS").is_some() {
+        std::fs::write(&golden, &text).unwrap();
+    }
+    assert_eq!(text, std::fs::read_to_string(&golden).unwrap());
     assert_eq!(
         other_frames, 0,
         "the capture holds no end-of-discovery frame"

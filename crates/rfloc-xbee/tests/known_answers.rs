@@ -1,5 +1,5 @@
-//! Known-answer tests: byte literals from the protocol reference
-//! (/work/shared/protocols/xbee-api.md, cited by section) decoded, parsed and re-encoded.
+//! Known-answer tests: byte literals from the project's XBee API reference (cited by section;
+//! see `docs/protocols/xbee-api.md`) decoded, parsed and re-encoded.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 use rfloc_xbee::{
