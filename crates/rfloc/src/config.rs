@@ -287,6 +287,12 @@ pub struct EkfSlamSettings {
     /// Added in quadrature to the fitted bearing's σ, degrees (antenna pattern mismatch).
     #[serde(default = "default_bearing_floor")]
     pub bearing_floor_deg: f64,
+    /// The directional antenna's calibrated gain pattern: each sweep's bearing and level are
+    /// fitted with it over all stops (`{ kind = "cosine_power", exponent, back_lobe_db }` or
+    /// `{ kind = "parabolic", hpbw_rad, front_to_back_db }`). Without it, a parabola through
+    /// the strongest stops.
+    #[serde(default)]
+    pub antenna_pattern: Option<rfloc_bearing::GainPattern>,
     /// A beacon first seen is mapped once its triangulated position's largest σ is below
     /// this, metres.
     #[serde(default = "default_beacon_init_std")]
@@ -350,6 +356,7 @@ impl Default for EkfSlamSettings {
             beacon_init_max_std_m: default_beacon_init_std(),
             beacon_init_with_range: false,
             beacon_init_pose_copies: false,
+            antenna_pattern: None,
             waypoint_switch_m: default_waypoint_switch(),
             max_speed_mps: default_max_speed(),
             odometry_trans_per_m: default_odometry_trans(),

@@ -55,8 +55,8 @@ pub fn build(config: &EstimatorConfig, state_dir: Option<&std::path::Path>) -> B
     }
 }
 
-/// Sweep settings for the XBee radio's task: the pipeline's step and path-loss model where it
-/// has them, the bearing crate's defaults otherwise.
+/// Sweep settings for the XBee radio's task: the pipeline's step, path-loss model and antenna
+/// pattern where it has them, the bearing crate's defaults otherwise.
 #[must_use]
 pub fn scan_config(config: &EstimatorConfig) -> rfloc_bearing::ScanConfig {
     let mut scan = rfloc_bearing::ScanConfig::default();
@@ -64,6 +64,7 @@ pub fn scan_config(config: &EstimatorConfig) -> rfloc_bearing::ScanConfig {
         scan.plan.step_deg = e.sweep_step_deg;
         scan.estimator.path_loss.p_ref_dbm = e.p_ref_dbm;
         scan.estimator.path_loss.eta = e.path_loss_exponent;
+        scan.estimator.pattern = e.antenna_pattern;
     }
     scan
 }
@@ -98,5 +99,31 @@ impl Pipeline for Unavailable {
             );
         }
         None
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::panic)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_sweep_task_fits_the_configured_antenna_pattern() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../config/sim-xbee.toml");
+        let text = std::fs::read_to_string(path).unwrap();
+        let cfg = crate::config::RobotConfig::parse(&text, path).unwrap();
+        let scan = scan_config(&cfg.estimator);
+        let Some(rfloc_bearing::GainPattern::CosinePower(p)) = scan.estimator.pattern else {
+            panic!("no cosine-power pattern: {:?}", scan.estimator.pattern);
+        };
+        assert!((p.exponent - 8.0).abs() < 1e-12 && (p.back_lobe_db + 10.0).abs() < 1e-12);
+        // Without the setting the sweep keeps the parabolic peak fit.
+        let plain = text.replace(
+            "antenna_pattern = { kind = \"cosine_power\", exponent = 8.0, back_lobe_db = -10.0 }\n",
+            "",
+        );
+        assert_ne!(plain, text);
+        let cfg = crate::config::RobotConfig::parse(&plain, path).unwrap();
+        assert!(scan_config(&cfg.estimator).estimator.pattern.is_none());
     }
 }
