@@ -62,10 +62,10 @@ use rfloc_pose::{EstimateMode, Pose2};
 use rfloc_sim::recorder::TrialRecorder;
 use rfloc_sim::Scenario;
 use rfloc_snapshot::{
-    Action, ActionModel, ActionTable, CycleBreaker, ExplorationConfig, ExplorationInput,
-    ExplorationPolicy, FilterConfig, FingerprintMap, LatticeConfig, LatticePlan, LearnConfig,
-    Observation, ReadModel, Snapshot, SnapshotDatabase, StateFilter, Survey, TagId, TagMap,
-    TagMapConfig, TrackConfig, TrackFilter,
+    Action, ActionTable, CycleBreaker, ExplorationConfig, ExplorationInput, ExplorationPolicy,
+    FilterConfig, FingerprintMap, LatticeConfig, LatticePlan, LearnConfig, Observation, ReadModel,
+    Snapshot, SnapshotDatabase, StateFilter, Survey, TagId, TagMap, TagMapConfig, TrackConfig,
+    TrackFilter,
 };
 
 use super::SimOptions;
@@ -258,6 +258,18 @@ fn read_model(scenario: &Scenario) -> ReadModel {
     }
 }
 
+/// Each action's nominal increment (Table 4 over one action's duration), for actions the
+/// survey never drove.
+fn nominal_increments(act: &Actuation) -> [Pose2; 5] {
+    Action::ALL.map(|a| {
+        rfloc_snapshot::integrate(
+            &Pose2::default(),
+            act.table.nominal(a),
+            act.action_duration_s,
+        )
+    })
+}
+
 /// Planar distance of two poses.
 fn dist(a: &Pose2, b: &Pose2) -> f64 {
     (a.x - b.x).hypot(a.y - b.y)
@@ -432,8 +444,7 @@ pub async fn run_trial(
     let mut known: std::collections::BTreeSet<TagId> = std::collections::BTreeSet::new();
     let mut by_truth: Vec<Observation> = Vec::with_capacity(explore_steps);
     let mut odom_poses: Vec<Pose2> = Vec::with_capacity(explore_steps);
-    // Odometry poses where the wheels stalled (the bumper/stall bits: a wall is there).
-    let mut stall_poses: Vec<Pose2> = Vec::new();
+    // Whether each action's SIPs reported a wheel stall (a wall is there).
     let mut stalled_steps: Vec<bool> = Vec::with_capacity(explore_steps);
     for step in 0..explore_steps {
         let snapshot = rig.read_snapshot().await?;
@@ -458,9 +469,6 @@ pub async fn run_trial(
         if let Some(a) = action {
             let cmd = act.drive_command(act.noisy(a, &mut rng));
             let stalled = rig.drive(cmd, DRIVE_DURATION_S).await?;
-            if stalled {
-                stall_poses.push(rig.odometry_pose());
-            }
             stalled_steps.push(stalled);
             reflex.after_action(stalled, &mut rng);
         }
@@ -502,11 +510,19 @@ pub async fn run_trial(
     // (a live robot localises from it and the tag map: `[estimator] survey`, `tag_map`); the
     // fingerprints and the tag map are learned from the reloaded copy.
     let survey_path = dir.join("survey.json");
-    Survey::new(
+    Survey::with_actions(
         by_truth
             .iter()
             .zip(&odom_poses)
-            .map(|(o, p)| (&o.snapshot, *p)),
+            .enumerate()
+            .map(|(i, (o, p))| {
+                (
+                    &o.snapshot,
+                    *p,
+                    o.action,
+                    stalled_steps.get(i).copied().unwrap_or(false),
+                )
+            }),
     )
     .save(&survey_path)
     .with_context(|| format!("saving {}", survey_path.display()))?;
@@ -543,26 +559,15 @@ pub async fn run_trial(
                 .map(|w| (t.x - w.position.x).hypot(t.y - w.position.y))
         })
         .collect();
-    // The learned motion of each action: mean odometry increment of the steps that did not stall.
-    let fallback = Action::ALL.map(|a| {
-        let n = act.table.nominal(a);
-        rfloc_snapshot::integrate(&Pose2::default(), n, act.action_duration_s)
-    });
-    let action_model = ActionModel::learn(
-        odom_poses
-            .windows(2)
-            .zip(&by_truth)
-            .zip(&stalled_steps)
-            .filter(|(_, stalled)| !**stalled)
-            .filter_map(|((w, o), _)| match (w.first(), o.action, w.get(1)) {
-                (Some(a), Some(act), Some(b)) => Some((a, act, b)),
-                _ => None,
-            }),
-        &fallback,
-    );
+    // The learned motion of each action (mean odometry increment of the surveyed steps that did
+    // not stall) and the places where the wheels stalled, from the survey.
+    let fallback = nominal_increments(&act);
     let lattice_config = LatticeConfig::default();
-    let (lattice_model, lattice_poses, lattice_stalls) =
-        (action_model, odom_poses.clone(), stall_poses.clone());
+    let (lattice_model, lattice_poses, lattice_stalls) = (
+        survey.action_model(&fallback),
+        survey.poses(),
+        survey.stall_places(),
+    );
     let goal_radius = GOAL_FRACTION * tolerance;
     let lattice = tokio::task::spawn_blocking(move || {
         LatticePlan::solve(
@@ -797,7 +802,10 @@ pub async fn run_trial(
     rec.metric("limit_cycles", stalls.stalls() as f64);
     rec.metric("cycles_broken", cycles.broken() as f64);
     rec.metric("navigation_wall_stalls", f64::from(nav_stalls));
-    rec.metric("exploration_stall_places", stall_poses.len() as f64);
+    rec.metric(
+        "exploration_stall_places",
+        survey.stall_places().len() as f64,
+    );
     rec.metric("unsettled_stops", counters.unsettled as f64);
     rec.metric("wheel_stall_actions", counters.stalls as f64);
     rec.metric("wall_turns", reflex.triggered() as f64);
