@@ -430,6 +430,19 @@ pub struct SnapshotSettings {
     /// Seed of the tag-map particle filter's random draws (replays repeat exactly).
     #[serde(default)]
     pub seed: u64,
+    /// Drive to this point of the map (x, y in metres) on the tag map, one seed action at a
+    /// time; needs `survey` and `tag_map`. Without it the pipeline only localises.
+    #[serde(default)]
+    pub goal: Option<[f64; 2]>,
+    /// The robot stops when a steady fix is within this distance of the goal, metres.
+    #[serde(default = "default_goal_radius")]
+    pub goal_radius_m: f64,
+    /// One seed action's duration in Table 4's units, as the survey was driven, seconds.
+    #[serde(default = "default_action_duration")]
+    pub action_duration_s: f64,
+    /// Time the base takes to drive one action, seconds.
+    #[serde(default = "default_drive_duration")]
+    pub drive_duration_s: f64,
     /// `kmedoids` or `threshold`.
     #[serde(default = "default_clustering")]
     pub clustering: String,
@@ -444,10 +457,23 @@ impl Default for SnapshotSettings {
             survey: None,
             tag_map: None,
             seed: 0,
+            goal: None,
+            goal_radius_m: default_goal_radius(),
+            action_duration_s: default_action_duration(),
+            drive_duration_s: default_drive_duration(),
             clustering: default_clustering(),
             states: default_states(),
         }
     }
+}
+fn default_goal_radius() -> f64 {
+    0.2
+}
+fn default_action_duration() -> f64 {
+    0.1
+}
+fn default_drive_duration() -> f64 {
+    0.5
 }
 fn default_database() -> PathBuf {
     PathBuf::from("snapshot-db.json")
@@ -835,6 +861,22 @@ impl RobotConfig {
                 return Err(err(
                     "estimator.clustering",
                     format!("{:?} is not kmedoids or threshold", s.clustering),
+                ));
+            }
+            if s.goal.is_some() && (s.survey.is_none() || s.tag_map.is_none()) {
+                return Err(err(
+                    "estimator.goal",
+                    "driving to a goal needs estimator.survey and estimator.tag_map".into(),
+                ));
+            }
+            if s.goal.iter().flatten().any(|v| !v.is_finite())
+                || !(s.goal_radius_m > 0.0 && s.goal_radius_m.is_finite())
+                || !(s.action_duration_s > 0.0 && s.action_duration_s.is_finite())
+                || !(s.drive_duration_s > 0.0 && s.drive_duration_s.is_finite())
+            {
+                return Err(err(
+                    "estimator",
+                    "goal, goal_radius_m, action_duration_s and drive_duration_s must be finite (durations and radius > 0)".into(),
                 ));
             }
             match (&s.survey, &s.tag_map) {

@@ -6,6 +6,7 @@ use crate::config::EstimatorConfig;
 use crate::events::DeviceEvent;
 
 mod ekfslam;
+mod goal;
 mod hfgrid;
 mod odometry;
 mod snapshot;
@@ -72,7 +73,11 @@ pub fn scan_config(config: &EstimatorConfig) -> rfloc_bearing::ScanConfig {
 /// Whether the pipeline drives the base itself (then no simulated motion script runs).
 #[must_use]
 pub fn drives_base(config: &EstimatorConfig) -> bool {
-    matches!(config, EstimatorConfig::Ekfslam(e) if !e.waypoints.is_empty())
+    match config {
+        EstimatorConfig::Ekfslam(e) => !e.waypoints.is_empty(),
+        EstimatorConfig::Snapshot(s) => s.goal.is_some(),
+        _ => false,
+    }
 }
 
 /// A pipeline that could not be built from a validated configuration (for example an

@@ -25,7 +25,8 @@ use rfloc_snapshot::{
 
 use crate::config::SnapshotSettings;
 use crate::events::DeviceEvent;
-use crate::pipeline::Pipeline;
+use crate::pipeline::goal::{GoalDrive, GoalSettings};
+use crate::pipeline::{Pipeline, Request};
 
 /// A tag-map pose is a `fix` when the heaviest mode holds this much of the weight ...
 pub const FIX_MASS: f64 = 0.8;
@@ -83,9 +84,10 @@ enum Localiser {
     Clusters(Box<(SnapshotDatabase, StateFilter)>),
 }
 
-/// Snapshot localisation on the learned state.
+/// Snapshot localisation on the learned state, and optionally driving to a goal.
 pub struct SnapshotPipeline {
     localiser: Option<Localiser>,
+    goal: Option<GoalDrive>,
     path: PathBuf,
     warned: bool,
 }
@@ -102,6 +104,7 @@ impl std::fmt::Debug for SnapshotPipeline {
                     None => "none",
                 },
             )
+            .field("goal", &self.goal.as_ref().map(GoalDrive::phase))
             .finish()
     }
 }
@@ -114,11 +117,11 @@ fn in_state_dir(path: &Path, state_dir: Option<&Path>) -> PathBuf {
     }
 }
 
-/// The tag-map localiser, when both of its files are configured and load.
+/// The tag-map localiser, when both of its files are configured and load, with its survey.
 fn load_map_localiser(
     settings: &SnapshotSettings,
     state_dir: Option<&Path>,
-) -> Option<MapLocaliser> {
+) -> Option<(MapLocaliser, Survey)> {
     let (survey, tag_map) = (settings.survey.as_ref()?, settings.tag_map.as_ref()?);
     let (survey_path, map_path) = (
         in_state_dir(survey, state_dir),
@@ -146,14 +149,17 @@ fn load_map_localiser(
         tags = tags.len(),
         "tag map loaded"
     );
-    Some(MapLocaliser {
-        tags,
-        prints,
-        filter: TrackFilter::new(TrackConfig::default()),
-        rng: ChaCha8Rng::seed_from_u64(settings.seed),
-        odometry: None,
-        at_last_snapshot: None,
-    })
+    Some((
+        MapLocaliser {
+            tags,
+            prints,
+            filter: TrackFilter::new(TrackConfig::default()),
+            rng: ChaCha8Rng::seed_from_u64(settings.seed),
+            odometry: None,
+            at_last_snapshot: None,
+        },
+        survey,
+    ))
 }
 
 impl SnapshotPipeline {
@@ -171,6 +177,7 @@ impl SnapshotPipeline {
                 odometry: None,
                 at_last_snapshot: None,
             }))),
+            goal: None,
             path: PathBuf::from("(in memory)"),
             warned: false,
         }
@@ -181,12 +188,27 @@ impl SnapshotPipeline {
     #[must_use]
     pub fn new(settings: &SnapshotSettings, state_dir: Option<&Path>) -> Self {
         let path = in_state_dir(&settings.database, state_dir);
-        if let Some(map) = load_map_localiser(settings, state_dir) {
+        if let Some((map, survey)) = load_map_localiser(settings, state_dir) {
+            let goal = settings.goal.map(|[x, y]| {
+                GoalDrive::plan(
+                    &survey,
+                    GoalSettings {
+                        goal: (x, y),
+                        radius_m: settings.goal_radius_m,
+                        action_duration_s: settings.action_duration_s,
+                        drive_duration_s: settings.drive_duration_s,
+                    },
+                )
+            });
             return Self {
                 localiser: Some(Localiser::Map(Box::new(map))),
+                goal,
                 path,
                 warned: false,
             };
+        }
+        if settings.goal.is_some() {
+            tracing::error!("no tag map: the goal is not driven to");
         }
         let localiser = match SnapshotDatabase::load(&path) {
             Ok(db) => {
@@ -201,6 +223,7 @@ impl SnapshotPipeline {
         };
         Self {
             localiser,
+            goal: None,
             path,
             warned: false,
         }
@@ -212,12 +235,22 @@ impl Pipeline for SnapshotPipeline {
         "snapshot"
     }
 
+    fn take_requests(&mut self) -> Vec<Request> {
+        self.goal
+            .as_mut()
+            .map(GoalDrive::take_requests)
+            .unwrap_or_default()
+    }
+
     fn handle(&mut self, event: &DeviceEvent) -> Option<PoseEstimate> {
         let (t, tags) = match event {
             DeviceEvent::UhfSnapshot { t, tags, .. } => (*t, tags),
-            DeviceEvent::Odometry { pose, .. } => {
+            DeviceEvent::Odometry { t, pose, v, w, .. } => {
                 if let Some(Localiser::Map(m)) = &mut self.localiser {
                     m.odometry = Some(*pose);
+                }
+                if let Some(g) = &mut self.goal {
+                    g.on_odometry(*t, *v, *w);
                 }
                 return None;
             }
@@ -235,7 +268,13 @@ impl Pipeline for SnapshotPipeline {
                 .filter_map(|(id, rss)| Some((TagId::from_hex(id)?, *rss))),
         );
         match localiser {
-            Localiser::Map(m) => m.on_snapshot(t, &snapshot),
+            Localiser::Map(m) => {
+                let estimate = m.on_snapshot(t, &snapshot)?;
+                if let Some(g) = &mut self.goal {
+                    g.on_estimate(&estimate);
+                }
+                Some(estimate)
+            }
             Localiser::Clusters(c) => {
                 let (db, filter) = &mut **c;
                 filter.update(db, &snapshot);

@@ -47,7 +47,6 @@ use super::SimOptions;
 mod calibration;
 mod homing;
 mod run;
-mod walls;
 
 use run::{capture_path, run_system, RunOutcome, RunSpec};
 

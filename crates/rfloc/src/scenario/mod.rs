@@ -16,7 +16,7 @@ mod ekfslam;
 mod emitter;
 mod hfinit;
 mod lockstep;
-mod snapshot;
+pub(crate) mod snapshot;
 
 /// Options of a simulated run.
 #[derive(Debug, Clone)]

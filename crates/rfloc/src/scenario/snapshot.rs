@@ -74,7 +74,7 @@ use crate::pipeline::{Pipeline, SnapshotPipeline};
 
 mod actuation;
 mod reflex;
-mod rig;
+pub(crate) mod rig;
 mod stall;
 
 use actuation::Actuation;

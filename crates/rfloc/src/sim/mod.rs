@@ -27,6 +27,8 @@ use rfloc_xbee::{
 };
 
 use crate::config::{DriverConfig, EstimatorConfig, RobotConfig, SimulationConfig};
+
+pub(crate) mod walls;
 use crate::devices::MotionSender;
 
 /// The Pioneer emulator's simulated clock (seconds), for driver timestamps and captures in
@@ -239,6 +241,20 @@ pub async fn start(
         start: Pose2::new(sim.start[0], sim.start[1], sim.start[2].to_radians()),
     };
     let start = Pose2::new(sim.start[0], sim.start[1], sim.start[2].to_radians());
+    let scenario = match &sim.scenario {
+        Some(p) => {
+            let path = config_dir.map_or_else(|| p.clone(), |d| d.join(p));
+            Some(
+                rfloc_sim::Scenario::load(&path)
+                    .with_context(|| format!("loading {}", path.display()))?,
+            )
+        }
+        None => None,
+    };
+    // A snapshot scenario's robot: the base its survey was driven with, walled in by its world.
+    let snapshot_world = scenario
+        .as_ref()
+        .filter(|s| s.spec.pipeline == rfloc_sim::scenario::Pipeline::Snapshot);
     let antenna_offset = match &cfg.estimator {
         EstimatorConfig::Hfgrid(h) => h.antenna_offset_m,
         _ => 0.10,
@@ -250,16 +266,27 @@ pub async fn start(
         .filter(|d| matches!(d.driver, DriverConfig::Aria(_)))
     {
         let (master, slave, link) = pty_link(9600)?;
-        let mut emulator = RobotEmulator::new(RobotEmulatorConfig {
-            time_scale: sim.time_scale,
-            initial_pose: start,
-            noise_seed: sim.seed,
-            slip: (sim.slip_sigma > 0.0).then_some(WheelSlip {
-                seed: sim.seed ^ 0x5119,
-                relative_std: sim.slip_sigma,
+        let mut emulator = match snapshot_world {
+            Some(sc) => RobotEmulator::new(RobotEmulatorConfig {
+                time_scale: sim.time_scale,
+                initial_pose: start,
+                ..crate::scenario::snapshot::rig::robot_config(sim.seed, sim.slip_sigma)
+            })
+            .with_motion_hook(walls::wall_hook(
+                Arc::new(sc.world.clone()),
+                sc.spec.robot.drive.body_radius,
+            )),
+            None => RobotEmulator::new(RobotEmulatorConfig {
+                time_scale: sim.time_scale,
+                initial_pose: start,
+                noise_seed: sim.seed,
+                slip: (sim.slip_sigma > 0.0).then_some(WheelSlip {
+                    seed: sim.seed ^ 0x5119,
+                    relative_std: sim.slip_sigma,
+                }),
+                ..RobotEmulatorConfig::default()
             }),
-            ..RobotEmulatorConfig::default()
-        });
+        };
         runtime.base = Some(emulator.handle());
         let stop = emulators.clone();
         runtime.tasks.push(tokio::spawn(async move {
@@ -305,7 +332,46 @@ pub async fn start(
         .iter()
         .any(|d| matches!(d.driver, DriverConfig::Xbee(_)));
     if has_xbee {
-        start_xbee(cfg, sim, config_dir, start, &mut runtime)?;
+        let scenario = scenario
+            .as_ref()
+            .context("an emulated XBee radio needs [simulation] scenario")?;
+        start_xbee(cfg, scenario, start, &mut runtime)?;
+    }
+    for device in cfg
+        .devices
+        .iter_mut()
+        .filter(|d| matches!(d.driver, DriverConfig::Alien(_)))
+    {
+        let scenario = scenario
+            .as_ref()
+            .context("an emulated Alien reader needs [simulation] scenario (its UHF tags)")?;
+        let base = runtime
+            .base
+            .clone()
+            .context("an emulated Alien reader needs an emulated base (its pose)")?;
+        let field = crate::scenario::snapshot::rig::uhf_field(
+            rfloc_sim::SensorSuite::for_trial(scenario, 0),
+            Arc::new(scenario.world.clone()),
+            base,
+            Arc::new(Mutex::new(0)),
+        );
+        let emulator =
+            rfloc_alien::ReaderEmulator::new(field, rfloc_alien::EmulatorOptions::default());
+        let (addr, task) = emulator
+            .bind_loopback()
+            .await
+            .context("binding the Alien reader emulator")?;
+        runtime.tasks.push(tokio::spawn(async move {
+            if let Ok(Err(e)) = task.await {
+                tracing::warn!(error = %e, "Alien reader emulator ended");
+            }
+        }));
+        let link = LinkConfig::Tcp(rfloc_transport::TcpLink {
+            address: addr.to_string(),
+            connect_timeout: 5.0,
+        });
+        tracing::info!(device = %device.name, link = %link.describe(), "emulated Alien reader on loopback TCP");
+        device.link = Some(link);
     }
     for device in &cfg.devices {
         if matches!(device.driver, DriverConfig::Stepper(_)) {
@@ -343,18 +409,10 @@ pub(crate) fn xbee_beacons(world: &rfloc_sim::World) -> Vec<Beacon> {
 /// simulated stepper that the daemon's XBee task turns.
 fn start_xbee(
     cfg: &mut RobotConfig,
-    sim: &SimulationConfig,
-    config_dir: Option<&std::path::Path>,
+    scenario: &rfloc_sim::Scenario,
     start: Pose2,
     runtime: &mut SimRuntime,
 ) -> anyhow::Result<()> {
-    let scenario_path = sim
-        .scenario
-        .as_ref()
-        .context("an emulated XBee radio needs [simulation] scenario")?;
-    let scenario_path = config_dir.map_or_else(|| scenario_path.clone(), |d| d.join(scenario_path));
-    let scenario = rfloc_sim::Scenario::load(&scenario_path)
-        .with_context(|| format!("loading {}", scenario_path.display()))?;
     let world = scenario.world.clone();
     let stepper_settings = cfg.devices.iter().find_map(|d| match &d.driver {
         DriverConfig::Stepper(s) => Some(s.clone()),
@@ -371,7 +429,7 @@ fn start_xbee(
     let antenna = stepper.angle_probe();
     runtime.stepper = Some(stepper);
     let sensors = Arc::new(Mutex::new((
-        rfloc_sim::SensorSuite::for_trial(&scenario, 0),
+        rfloc_sim::SensorSuite::for_trial(scenario, 0),
         None::<Pose2>,
     )));
     for device in cfg.devices.iter_mut() {
@@ -418,7 +476,7 @@ fn start_xbee(
                 r = emulator.serve(master) => if let Err(e) = r { tracing::warn!(error = %e, "XBee emulator ended") },
             }
         }));
-        tracing::info!(device = %device.name, link = %link.describe(), scenario = %scenario_path.display(), beacons = scenario.world.beacons.len(), "emulated XBee coordinator on a pty");
+        tracing::info!(device = %device.name, link = %link.describe(), scenario = %scenario.spec.name, beacons = scenario.world.beacons.len(), "emulated XBee coordinator on a pty");
         device.link = Some(link);
         runtime._slaves.push(slave);
     }

@@ -31,8 +31,8 @@ use rfloc_transport::{CaptureSink, LinkConfig, Recorder, SharedClock};
 
 use super::calibration::calibrate;
 use super::homing::{EmitterHoming, HomingConfig};
-use super::walls::wall_hook;
 use crate::scenario::lockstep::{driver_config, LockstepBase};
+use crate::sim::walls::wall_hook;
 use crate::sim::{trial_capture, EmulatorClock};
 
 /// Emulator ticks (SIP periods of 0.1 s) per control step: 5 Hz control, sensing and filtering.

@@ -17,16 +17,17 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
 use crate::scenario::lockstep::{driver_config, LockstepBase};
+use crate::sim::walls::wall_hook;
 use crate::sim::EmulatorClock;
 use anyhow::Context;
 use rfloc_alien::{
     AlienClient, AlienConfig, EmulatorOptions, ReaderEmulator, ReaderSetup, SnapshotReader,
 };
 use rfloc_aria::{
-    AriaClient, EmulatorConfig as RobotConfig, EmulatorHandle, MotionHook, RobotEmulator, WheelSlip,
+    AriaClient, EmulatorConfig as RobotConfig, EmulatorHandle, RobotEmulator, WheelSlip,
 };
 use rfloc_pose::Pose2;
-use rfloc_sim::{Point, Scenario, SensorSuite, World};
+use rfloc_sim::{Scenario, SensorSuite, World};
 use rfloc_snapshot::{AverageConfig, AverageTagSet, MotionCommand, Snapshot, TagId};
 use rfloc_transport::{open, CaptureSink, LinkConfig, Recorder, SharedClock, TcpLink};
 use tokio::task::JoinHandle;
@@ -78,15 +79,48 @@ pub struct SnapshotRig {
     _robot_slave: tokio_serial::SerialStream,
 }
 
-/// A motion hook that keeps a disc of `radius` inside the world (walls stall the wheels;
-/// turning on the spot stays possible).
-fn wall_hook(world: Arc<World>, radius: f64) -> MotionHook {
-    Box::new(move |current: &Pose2, proposed: &Pose2| {
-        if world.disk_collides(&Point::new(proposed.x, proposed.y), radius) {
-            Pose2::new(current.x, current.y, proposed.theta)
-        } else {
-            *proposed
+/// The emulated Pioneer of the snapshot scenarios (without its start pose): accelerations
+/// raised from the P3-DX defaults so that one action's displacement (seed Table 4 over 0.1 s)
+/// is driven within about half a second, and a relative wheel slip on the true motion.
+#[must_use]
+pub fn robot_config(seed: u64, slip: f64) -> RobotConfig {
+    RobotConfig {
+        noise_seed: seed,
+        trans_accel: 2000.0,
+        trans_decel: 2000.0,
+        rot_accel: 400.0,
+        rot_decel: 400.0,
+        slip: (slip > 0.0).then_some(WheelSlip {
+            seed: seed ^ 0x534c_4950,
+            relative_std: slip,
+        }),
+        ..RobotConfig::default()
+    }
+}
+
+/// The Alien emulator's tag field: the scenario's UHF model read at the robot's true pose
+/// (`truth`), each call one inventory. EPCs that are not hex are counted in `bad_epcs`.
+pub fn uhf_field(
+    sensors: SensorSuite,
+    world: Arc<World>,
+    truth: EmulatorHandle,
+    bad_epcs: Arc<Mutex<u64>>,
+) -> rfloc_alien::TagField {
+    let sensors = Mutex::new(sensors);
+    Arc::new(move || {
+        let pose = truth.truth();
+        let reads = sensors
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .uhf_inventory(&world, &pose);
+        let mut out = Vec::with_capacity(reads.len());
+        for (epc, rss) in reads {
+            match TagId::from_hex(&epc) {
+                Some(id) => out.push((id.0, rss)),
+                None => *bad_epcs.lock().unwrap_or_else(PoisonError::into_inner) += 1,
+            }
         }
+        out
     })
 }
 
@@ -111,22 +145,11 @@ impl SnapshotRig {
         let stop = CancellationToken::new();
         let mut tasks = Vec::new();
 
-        // Pioneer emulator on a pty. The accelerations are raised from the P3-DX defaults so
-        // that one action's displacement (seed Table 4 over 0.1 s) is driven within about half
-        // a second of simulated time.
+        // Pioneer emulator on a pty.
         let (robot_master, robot_slave, robot_link) = pty_link(9600)?;
         let mut robot = RobotEmulator::new(RobotConfig {
             initial_pose: start,
-            noise_seed: seed,
-            trans_accel: 2000.0,
-            trans_decel: 2000.0,
-            rot_accel: 400.0,
-            rot_decel: 400.0,
-            slip: (spec.slip > 0.0).then_some(WheelSlip {
-                seed: seed ^ 0x534c_4950,
-                relative_std: spec.slip,
-            }),
-            ..RobotConfig::default()
+            ..robot_config(seed, spec.slip)
         })
         .with_motion_hook(wall_hook(
             Arc::clone(&world),
@@ -144,26 +167,13 @@ impl SnapshotRig {
         }));
 
         // Alien reader emulator on loopback TCP; its field follows the true pose.
-        let sensors = Arc::new(Mutex::new(SensorSuite::for_trial(scenario, spec.trial)));
         let bad_epcs = Arc::new(Mutex::new(0u64));
-        let field_truth = truth.clone();
-        let field_world = Arc::clone(&world);
-        let field_bad = Arc::clone(&bad_epcs);
-        let field: rfloc_alien::TagField = Arc::new(move || {
-            let pose = field_truth.truth();
-            let reads = sensors
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner)
-                .uhf_inventory(&field_world, &pose);
-            let mut out = Vec::with_capacity(reads.len());
-            for (epc, rss) in reads {
-                match TagId::from_hex(&epc) {
-                    Some(id) => out.push((id.0, rss)),
-                    None => *field_bad.lock().unwrap_or_else(PoisonError::into_inner) += 1,
-                }
-            }
-            out
-        });
+        let field = uhf_field(
+            SensorSuite::for_trial(scenario, spec.trial),
+            Arc::clone(&world),
+            truth.clone(),
+            Arc::clone(&bad_epcs),
+        );
         // The reader's clock (tag times) runs on the simulated time.
         let emulator = ReaderEmulator::new(
             field,
