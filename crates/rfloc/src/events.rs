@@ -18,6 +18,9 @@ pub enum DeviceEvent {
         v: f64,
         w: f64,
     },
+    /// The base's SIPs began to report a stalled wheel (its motors push against something);
+    /// sent once per stall, when the first SIP with a stall bit follows one without.
+    WheelStall { device: String, t: f64 },
     /// An HF floor tag in the antenna field (`SCAN:+UID`), with the reader's RSSI numbers.
     HfTag {
         device: String,
@@ -73,6 +76,7 @@ impl DeviceEvent {
     pub fn device(&self) -> &str {
         match self {
             DeviceEvent::Odometry { device, .. }
+            | DeviceEvent::WheelStall { device, .. }
             | DeviceEvent::HfTag { device, .. }
             | DeviceEvent::UhfSnapshot { device, .. }
             | DeviceEvent::Sweep { device, .. }
@@ -106,6 +110,7 @@ impl DeviceEvent {
     pub fn time(&self) -> Option<f64> {
         match self {
             DeviceEvent::Odometry { t, .. }
+            | DeviceEvent::WheelStall { t, .. }
             | DeviceEvent::HfTag { t, .. }
             | DeviceEvent::UhfSnapshot { t, .. }
             | DeviceEvent::Sweep { t, .. }

@@ -254,6 +254,7 @@ async fn replay_kts(name: &str, cap: Capture) -> anyhow::Result<Vec<DeviceEvent>
 async fn replay_aria(name: &str, cap: Capture) -> anyhow::Result<Vec<DeviceEvent>> {
     let mut decoder = FrameDecoder::new();
     let mut tracker: Option<OdometryTracker> = None;
+    let mut stalled = false;
     let mut out = Vec::new();
     let mut skipped = 0u64;
     for rec in &cap.records {
@@ -283,6 +284,16 @@ async fn replay_aria(name: &str, cap: Capture) -> anyhow::Result<Vec<DeviceEvent
                         v: s.v,
                         w: s.w,
                     });
+                    // As the device task: one event when a stall begins.
+                    let stalled_now =
+                        sip.stall_bumpers.left_stall() || sip.stall_bumpers.right_stall();
+                    if stalled_now && !stalled {
+                        out.push(DeviceEvent::WheelStall {
+                            device: name.to_string(),
+                            t: rec.t(),
+                        });
+                    }
+                    stalled = stalled_now;
                 }
                 Ok(_) => {}
                 Err(_) => skipped += 1,

@@ -54,6 +54,7 @@ pub(super) async fn run(
         )
         .await;
         let mut odom = client.odometry();
+        let mut stalled = false;
         let mut link = client.link_state();
         loop {
             tokio::select! {
@@ -76,6 +77,14 @@ pub(super) async fn run(
                     if ctx.events.send(ev).await.is_err() {
                         return;
                     }
+                    let stalled_now = o.left_stall || o.right_stall;
+                    if stalled_now && !stalled {
+                        let ev = DeviceEvent::WheelStall { device: ctx.device.name.clone(), t: o.time };
+                        if ctx.events.send(ev).await.is_err() {
+                            return;
+                        }
+                    }
+                    stalled = stalled_now;
                 }
                 changed = link.changed() => {
                     if changed.is_err() {

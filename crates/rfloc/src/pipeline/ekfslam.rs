@@ -368,6 +368,7 @@ impl Pipeline for EkfSlamPipeline {
             DeviceEvent::HfTag { .. }
             | DeviceEvent::UhfSnapshot { .. }
             | DeviceEvent::Mark { .. }
+            | DeviceEvent::WheelStall { .. }
             | DeviceEvent::Status { .. } => None,
         }
     }

@@ -8,7 +8,9 @@
 //! configured drive time, is sent; after that time a stop; once the odometry shows the robot
 //! still, the snapshot after the next decides again (the first may hold reads from before the
 //! stop). The robot has arrived when [`CONFIDENT_STEPS`] decisions in a row saw a steady fix
-//! within the goal radius; it then stays stopped.
+//! within the goal radius; it then stays stopped. A wheel stall (the body against a wall the
+//! plan did not know) stops the action at once, and the next [`STALL_TURN_STEPS`] actions
+//! rotate on the spot, to the side the plan ranks better.
 
 use rfloc_pose::{EstimateMode, Pose2, PoseEstimate};
 use rfloc_snapshot::{Action, ActionTable, CycleBreaker, LatticeConfig, LatticePlan, Survey};
@@ -25,6 +27,8 @@ const STEADY_SPREAD_M: f64 = 0.2;
 const STILL_V: f64 = 1e-3;
 const STILL_W: f64 = 1e-3;
 const STOP_SETTLE_S: f64 = 0.2;
+/// Rotations after a wheel stall (as the seed 000 trial's navigation).
+pub const STALL_TURN_STEPS: usize = 6;
 /// The cycle breaker's window and repeats (as the seed 000 trial).
 const CYCLE_WINDOW: usize = 16;
 const CYCLE_REPEATS: usize = 3;
@@ -64,8 +68,12 @@ pub struct GoalDrive {
     confident: usize,
     last_fix: Option<Pose2>,
     requests: Vec<Request>,
-    /// Actions sent so far.
+    /// Rotations still to take after a stall, and their direction once chosen.
+    turns_left: usize,
+    turn: Option<Action>,
+    /// Actions sent so far, and wheel stalls met.
     pub actions: u64,
+    pub stalls: u64,
 }
 
 impl std::fmt::Debug for GoalDrive {
@@ -113,7 +121,10 @@ impl GoalDrive {
             confident: 0,
             last_fix: None,
             requests: Vec::new(),
+            turns_left: 0,
+            turn: None,
             actions: 0,
+            stalls: 0,
         }
     }
 
@@ -146,6 +157,24 @@ impl GoalDrive {
             }
             _ => {}
         }
+    }
+
+    /// The base reported a wheel stall: an action under way stops now, and the next actions
+    /// turn away.
+    pub fn on_stall(&mut self, t: f64) {
+        if self.phase == Phase::Arrived {
+            return;
+        }
+        self.stalls += 1;
+        if matches!(self.phase, Phase::Driving { .. }) {
+            self.stop();
+            self.phase = Phase::Stopping { since: t };
+        }
+        if self.turns_left == 0 {
+            self.turns_left = STALL_TURN_STEPS;
+            self.turn = None;
+        }
+        tracing::info!(t, "wheel stall: turning away");
     }
 
     /// A published pose (one per snapshot): at rest, it decides the next action.
@@ -182,7 +211,19 @@ impl GoalDrive {
             return;
         }
         let ranked = self.plan.ranked(&pose);
-        let (action, reason) = self.cycles.choose(&pose, &ranked);
+        let (action, reason) = if self.turns_left > 0 {
+            self.turns_left -= 1;
+            let side = *self.turn.get_or_insert_with(|| {
+                ranked
+                    .iter()
+                    .map(|r| r.0)
+                    .find(|a| matches!(a, Action::RotateLeft | Action::RotateRight))
+                    .unwrap_or(Action::RotateLeft)
+            });
+            (side, "wall")
+        } else {
+            self.cycles.choose(&pose, &ranked)
+        };
         let n = self.table.nominal(action);
         let k = if self.settings.drive_duration_s > 0.0 {
             self.settings.action_duration_s / self.settings.drive_duration_s
@@ -296,5 +337,45 @@ mod tests {
         assert!(stops >= 1);
         drive.on_estimate(&fix(t + 5.0, Pose2::new(0.2, 1.0, 0.0)));
         assert!(drive.take_requests().is_empty(), "moved after arriving");
+    }
+
+    #[test]
+    fn a_wheel_stall_stops_the_action_and_turns_away() {
+        let settings = GoalSettings {
+            goal: (1.6, 1.0),
+            radius_m: 0.2,
+            action_duration_s: 0.1,
+            drive_duration_s: 0.5,
+        };
+        let mut drive = GoalDrive::plan(&floor(), settings);
+        drive.on_estimate(&fix(0.0, Pose2::new(1.0, 1.0, 0.0)));
+        assert_eq!(drive.take_requests().len(), 1);
+        drive.on_stall(0.2);
+        assert_eq!(
+            drive.take_requests(),
+            vec![Request::Velocity { v: 0.0, w: 0.0 }],
+            "a stall stops the drive at once"
+        );
+        assert_eq!(drive.phase(), Phase::Stopping { since: 0.2 });
+        let mut t = 0.2;
+        let mut turns = Vec::new();
+        for _ in 0..STALL_TURN_STEPS + 1 {
+            drive.on_odometry(t + 0.3, 0.0, 0.0);
+            drive.on_estimate(&fix(t + 0.4, Pose2::new(1.0, 1.0, 0.0)));
+            drive.on_estimate(&fix(t + 0.5, Pose2::new(1.0, 1.0, 0.0)));
+            turns.extend(drive.take_requests());
+            drive.on_odometry(t + 1.0, 0.0, 0.0);
+            drive.take_requests();
+            t += 1.0;
+        }
+        // Six rotations on the spot to one side (Table 4's 0.25 m/s, π/2 rad/s, scaled), then
+        // the plan again.
+        let rotations: Vec<&Request> = turns
+            .iter()
+            .filter(|r| matches!(r, Request::Velocity { v, w } if (v.abs() - 0.05).abs() < 1e-9 && w.abs() > 0.3))
+            .collect();
+        assert_eq!(rotations.len(), STALL_TURN_STEPS, "{turns:?}");
+        assert!(rotations.windows(2).all(|w| w[0] == w[1]), "{turns:?}");
+        assert_eq!(drive.stalls, 1);
     }
 }

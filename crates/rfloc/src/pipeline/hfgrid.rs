@@ -264,6 +264,7 @@ impl HfGridPipeline {
                 None
             }
             DeviceEvent::Status { .. }
+            | DeviceEvent::WheelStall { .. }
             | DeviceEvent::UhfSnapshot { .. }
             | DeviceEvent::Sweep { .. } => None,
         }
@@ -311,6 +312,7 @@ impl Pipeline for HfGridPipeline {
                 }
                 DeviceEvent::Mark { .. }
                 | DeviceEvent::Status { .. }
+                | DeviceEvent::WheelStall { .. }
                 | DeviceEvent::UhfSnapshot { .. }
                 | DeviceEvent::Sweep { .. } => None,
             },

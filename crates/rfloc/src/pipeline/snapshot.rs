@@ -245,6 +245,12 @@ impl Pipeline for SnapshotPipeline {
     fn handle(&mut self, event: &DeviceEvent) -> Option<PoseEstimate> {
         let (t, tags) = match event {
             DeviceEvent::UhfSnapshot { t, tags, .. } => (*t, tags),
+            DeviceEvent::WheelStall { t, .. } => {
+                if let Some(g) = &mut self.goal {
+                    g.on_stall(*t);
+                }
+                return None;
+            }
             DeviceEvent::Odometry { t, pose, v, w, .. } => {
                 if let Some(Localiser::Map(m)) = &mut self.localiser {
                     m.odometry = Some(*pose);
