@@ -45,26 +45,6 @@ fn config(dir: &std::path::Path, port: u16) -> std::path::PathBuf {
     path
 }
 
-/// `key=value` of the last log line containing `needle`.
-fn logged(log: &str, needle: &str, key: &str) -> f64 {
-    let line = log
-        .lines()
-        .rev()
-        .find(|l| l.contains(needle))
-        .unwrap_or_else(|| panic!("no log line with {needle:?}"));
-    let start = line
-        .find(&format!(" {key}="))
-        .unwrap_or_else(|| panic!("no {key} in {line}"))
-        + key.len()
-        + 2;
-    line[start..]
-        .split_whitespace()
-        .next()
-        .unwrap()
-        .parse()
-        .unwrap()
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn ekfslam_daemon_maps_beacons_and_drives_the_waypoints() {
     let dir = tempfile::tempdir().unwrap();
@@ -122,13 +102,13 @@ async fn ekfslam_daemon_maps_beacons_and_drives_the_waypoints() {
     assert!(fixes > poses / 2, "{fixes} of {poses} poses were fixes");
     assert!(log.contains("last waypoint reached"), "{log}");
     assert_eq!(
-        logged(&log, "sweep applied", "mapped"),
+        common::logged(&log, "sweep applied", "mapped"),
         4.0,
         "all four beacons mapped"
     );
     let (tx, ty) = (
-        logged(&log, "final true pose", "x"),
-        logged(&log, "final true pose", "y"),
+        common::logged(&log, "final true pose", "x"),
+        common::logged(&log, "final true pose", "y"),
     );
     let (ex, ey) = (last["x"].as_f64().unwrap(), last["y"].as_f64().unwrap());
     let error = (ex - tx).hypot(ey - ty);
@@ -143,7 +123,7 @@ async fn ekfslam_daemon_maps_beacons_and_drives_the_waypoints() {
     );
     // Every link was recorded; the radio's capture holds the ND requests of the sweeps.
     let xbee = std::fs::read_to_string(dir.path().join("cap/xbee.cap")).unwrap();
-    let sweeps = logged(&log, "sweep applied", "sweep");
+    let sweeps = common::logged(&log, "sweep applied", "sweep");
     let tx_lines = xbee.lines().filter(|l| l.contains(" tx ")).count();
     assert!(
         tx_lines as f64 >= sweeps * 40.0,

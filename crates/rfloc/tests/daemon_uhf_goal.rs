@@ -16,26 +16,6 @@ fn workspace() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
-/// `key=value` of the last log line containing `needle`.
-fn logged(log: &str, needle: &str, key: &str) -> f64 {
-    let line = log
-        .lines()
-        .rev()
-        .find(|l| l.contains(needle))
-        .unwrap_or_else(|| panic!("no log line with {needle:?}:\n{log}"));
-    let start = line
-        .find(&format!(" {key}="))
-        .unwrap_or_else(|| panic!("no {key} in {line}"))
-        + key.len()
-        + 2;
-    line[start..]
-        .split_whitespace()
-        .next()
-        .unwrap()
-        .parse()
-        .unwrap()
-}
-
 /// Explores the world and returns the trial folder (survey, tag map) and the scenario file.
 fn explore(dir: &Path) -> (PathBuf, PathBuf) {
     let world = workspace().join("scenarios/worlds/seed000-5x5.toml");
@@ -172,8 +152,8 @@ slip_sigma = 0.02
         "the robot never said it arrived\n{log}"
     );
     let (tx, ty) = (
-        logged(&log, "simulated robot final true pose", "x"),
-        logged(&log, "simulated robot final true pose", "y"),
+        common::logged(&log, "simulated robot final true pose", "x"),
+        common::logged(&log, "simulated robot final true pose", "y"),
     );
     let miss = (tx - goal.0).hypot(ty - goal.1);
     let travelled = (tx - start.x).hypot(ty - start.y);
@@ -187,6 +167,6 @@ slip_sigma = 0.02
         start.y,
         goal.0,
         goal.1,
-        logged(&log, "goal reached", "actions")
+        common::logged(&log, "goal reached", "actions")
     );
 }

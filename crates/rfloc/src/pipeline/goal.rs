@@ -268,6 +268,16 @@ mod tests {
         Survey::with_actions(samples.iter().map(|(p, a)| (&s, *p, *a, false)))
     }
 
+    /// The goal at (1.6, 1.0), stop within 0.2 m, Table 4 steps driven in 0.5 s.
+    fn settings() -> GoalSettings {
+        GoalSettings {
+            goal: (1.6, 1.0),
+            radius_m: 0.2,
+            action_duration_s: 0.1,
+            drive_duration_s: 0.5,
+        }
+    }
+
     fn fix(t: f64, pose: Pose2) -> PoseEstimate {
         PoseEstimate {
             time: t,
@@ -280,13 +290,7 @@ mod tests {
 
     #[test]
     fn drives_steps_stops_between_them_and_arrives() {
-        let settings = GoalSettings {
-            goal: (1.6, 1.0),
-            radius_m: 0.2,
-            action_duration_s: 0.1,
-            drive_duration_s: 0.5,
-        };
-        let mut drive = GoalDrive::plan(&floor(), settings);
+        let mut drive = GoalDrive::plan(&floor(), settings());
         // Far from the goal, facing it: the first decision drives (forward or an arc).
         drive.on_estimate(&fix(0.0, Pose2::new(0.2, 1.0, 0.0)));
         let r = drive.take_requests();
@@ -341,13 +345,7 @@ mod tests {
 
     #[test]
     fn a_wheel_stall_stops_the_action_and_turns_away() {
-        let settings = GoalSettings {
-            goal: (1.6, 1.0),
-            radius_m: 0.2,
-            action_duration_s: 0.1,
-            drive_duration_s: 0.5,
-        };
-        let mut drive = GoalDrive::plan(&floor(), settings);
+        let mut drive = GoalDrive::plan(&floor(), settings());
         drive.on_estimate(&fix(0.0, Pose2::new(1.0, 1.0, 0.0)));
         assert_eq!(drive.take_requests().len(), 1);
         drive.on_stall(0.2);

@@ -48,6 +48,18 @@ struct MapLocaliser {
 }
 
 impl MapLocaliser {
+    /// A localiser on `tags`, its proposals from the survey's fingerprints.
+    fn new(tags: TagMap, survey: &Survey, seed: u64) -> Self {
+        Self {
+            tags,
+            prints: survey.fingerprints(LearnConfig::default().distance),
+            filter: TrackFilter::new(TrackConfig::default()),
+            rng: ChaCha8Rng::seed_from_u64(seed),
+            odometry: None,
+            at_last_snapshot: None,
+        }
+    }
+
     fn on_snapshot(&mut self, t: f64, snapshot: &Snapshot) -> Option<PoseEstimate> {
         if let (Some(now), Some(before)) = (self.odometry, self.at_last_snapshot) {
             let step = now.relative_to(&before);
@@ -141,25 +153,14 @@ fn load_map_localiser(
             return None;
         }
     };
-    let prints = survey.fingerprints(LearnConfig::default().distance);
     tracing::info!(
         survey = %survey_path.display(),
         tag_map = %map_path.display(),
-        fingerprints = prints.len(),
+        samples = survey.samples.len(),
         tags = tags.len(),
         "tag map loaded"
     );
-    Some((
-        MapLocaliser {
-            tags,
-            prints,
-            filter: TrackFilter::new(TrackConfig::default()),
-            rng: ChaCha8Rng::seed_from_u64(settings.seed),
-            odometry: None,
-            at_last_snapshot: None,
-        },
-        survey,
-    ))
+    Some((MapLocaliser::new(tags, &survey, settings.seed), survey))
 }
 
 impl SnapshotPipeline {
@@ -167,16 +168,10 @@ impl SnapshotPipeline {
     /// learned and reloaded), its filter's draws seeded with `seed`.
     #[must_use]
     pub fn on_tag_map(tags: TagMap, survey: &Survey, seed: u64) -> Self {
-        let prints = survey.fingerprints(LearnConfig::default().distance);
         Self {
-            localiser: Some(Localiser::Map(Box::new(MapLocaliser {
-                tags,
-                prints,
-                filter: TrackFilter::new(TrackConfig::default()),
-                rng: ChaCha8Rng::seed_from_u64(seed),
-                odometry: None,
-                at_last_snapshot: None,
-            }))),
+            localiser: Some(Localiser::Map(Box::new(MapLocaliser::new(
+                tags, survey, seed,
+            )))),
             goal: None,
             path: PathBuf::from("(in memory)"),
             warned: false,

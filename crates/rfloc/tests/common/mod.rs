@@ -122,3 +122,23 @@ impl Daemon {
         (status, log)
     }
 }
+
+/// `key=value` of the last log line containing `needle`.
+pub fn logged(log: &str, needle: &str, key: &str) -> f64 {
+    let line = log
+        .lines()
+        .rev()
+        .find(|l| l.contains(needle))
+        .unwrap_or_else(|| panic!("no log line with {needle:?}"));
+    let start = line
+        .find(&format!(" {key}="))
+        .unwrap_or_else(|| panic!("no {key} in {line}"))
+        + key.len()
+        + 2;
+    line[start..]
+        .split_whitespace()
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap()
+}
