@@ -248,6 +248,30 @@ impl TrackFilter {
         ))
     }
 
+    /// Global localisation: every particle drawn around the matched fingerprints, uniform
+    /// weights.
+    fn draw_all<R: Rng + ?Sized>(&mut self, matches: &[(Pose2, f64)], rng: &mut R) {
+        let n = self.config.particles.max(1);
+        self.poses = (0..n)
+            .filter_map(|_| self.draw_near(matches, rng))
+            .collect();
+        let m = self.poses.len().max(1) as f64;
+        self.weights = vec![1.0 / m; self.poses.len()];
+        self.initialised = !self.poses.is_empty();
+    }
+
+    /// Particles to redraw near the matches (augmented MCL): the fraction by which the
+    /// short-term mean likelihood fell below the long-term one, capped by `reset_fraction`.
+    fn resets(&self) -> usize {
+        let deficit = if self.w_slow > 0.0 {
+            (1.0 - self.w_fast / self.w_slow).max(0.0)
+        } else {
+            0.0
+        };
+        let fraction = deficit.min(self.config.reset_fraction.clamp(0.0, 1.0));
+        (fraction * self.poses.len() as f64).round() as usize
+    }
+
     /// Weighs the particles by a snapshot; an empty snapshot (no tags) changes nothing.
     pub fn update<R: Rng + ?Sized>(
         &mut self,
@@ -261,13 +285,7 @@ impl TrackFilter {
             return;
         }
         if !self.initialised || self.poses.is_empty() {
-            let n = c.particles.max(1);
-            self.poses = (0..n)
-                .filter_map(|_| self.draw_near(&matches, rng))
-                .collect();
-            let m = self.poses.len().max(1) as f64;
-            self.weights = vec![1.0 / m; self.poses.len()];
-            self.initialised = !self.poses.is_empty();
+            self.draw_all(&matches, rng);
         }
         let inv_xy = 0.5 / (c.sigma_xy * c.sigma_xy).max(1e-12);
         let inv_th = 0.5 / (c.sigma_theta * c.sigma_theta).max(1e-12);
@@ -293,14 +311,7 @@ impl TrackFilter {
         // Sensor resetting: redraw a few particles near the matches when the cloud explains
         // the snapshots worse than it used to.
         let n = self.poses.len();
-        let deficit = if self.w_slow > 0.0 {
-            (1.0 - self.w_fast / self.w_slow).max(0.0)
-        } else {
-            0.0
-        };
-        let fraction = deficit.min(c.reset_fraction.clamp(0.0, 1.0));
-        let k = (fraction * n as f64).round() as usize;
-        for _ in 0..k {
+        for _ in 0..self.resets() {
             let i = rng.random_range(0..n.max(1));
             if let (Some(fresh), Some(slot)) =
                 (self.draw_near(&matches, rng), self.poses.get_mut(i))
@@ -333,21 +344,10 @@ impl TrackFilter {
             if matches.is_empty() {
                 return;
             }
-            let n = c.particles.max(1);
-            self.poses = (0..n)
-                .filter_map(|_| self.draw_near(&matches, rng))
-                .collect();
-            let m = self.poses.len().max(1) as f64;
-            self.weights = vec![1.0 / m; self.poses.len()];
-            self.initialised = !self.poses.is_empty();
+            self.draw_all(&matches, rng);
         } else if !matches.is_empty() {
-            let deficit = if self.w_slow > 0.0 {
-                (1.0 - self.w_fast / self.w_slow).max(0.0)
-            } else {
-                0.0
-            };
             let n = self.poses.len();
-            let k = (deficit.min(c.reset_fraction.clamp(0.0, 1.0)) * n as f64).round() as usize;
+            let k = self.resets();
             let uniform = 1.0 / n.max(1) as f64;
             for _ in 0..k {
                 let i = rng.random_range(0..n.max(1));
