@@ -7,9 +7,9 @@
 use rfloc_pose::Pose2;
 use serde::{Deserialize, Serialize};
 
-use crate::action::Action;
+use crate::action::{integrate, Action, ActionTable};
 use crate::distance::SnapshotDistance;
-use crate::lattice::ActionModel;
+use crate::lattice::{ActionModel, LatticeConfig, LatticePlan};
 use crate::snapshot::Snapshot;
 use crate::track::FingerprintMap;
 
@@ -94,6 +94,30 @@ impl Survey {
                     _ => None,
                 }),
             fallback,
+        )
+    }
+
+    /// Value iteration to `goal` over the surveyed floor (`LatticePlan`), with the learned
+    /// motion of each action (the nominal `table` command over `action_duration_s` for an action
+    /// never driven) and the stall places as walls.
+    #[must_use]
+    pub fn lattice_plan(
+        &self,
+        table: &ActionTable,
+        action_duration_s: f64,
+        goal: (f64, f64),
+        goal_radius: f64,
+        config: LatticeConfig,
+    ) -> LatticePlan {
+        let fallback =
+            Action::ALL.map(|a| integrate(&Pose2::default(), table.nominal(a), action_duration_s));
+        LatticePlan::solve(
+            self.action_model(&fallback),
+            &self.poses(),
+            &self.stall_places(),
+            goal,
+            goal_radius,
+            config,
         )
     }
 

@@ -226,7 +226,13 @@ impl TagMap {
             if seen.len() < config.min_reads.max(1) {
                 continue;
             }
-            if let Some(t) = locate(id, &seen, &antennas, &pose_grid, pose_cell, &model, &config) {
+            let index = SurveyIndex {
+                antennas: &antennas,
+                grid: &pose_grid,
+                cell: pose_cell,
+                reach,
+            };
+            if let Some(t) = locate(id, &seen, &index, &model, &config) {
                 tags.push(t);
             }
         }
@@ -390,17 +396,27 @@ fn tag_log_likelihood(
     ll
 }
 
+/// The survey's antenna poses with their spatial index, as every tag's search sees them.
+struct SurveyIndex<'a> {
+    antennas: &'a [Pose2],
+    grid: &'a HashMap<(i64, i64), Vec<usize>>,
+    /// Cell size of `grid`, metres.
+    cell: f64,
+    /// The model's reach, metres.
+    reach: f64,
+}
+
 /// Places one tag: first guess from its reads, coarse then fine grid search of the likelihood,
 /// σ from the likelihood's spread over the fine grid.
 fn locate(
     id: &TagId,
     seen: &[(usize, f64)],
-    antennas: &[Pose2],
-    pose_grid: &HashMap<(i64, i64), Vec<usize>>,
-    pose_cell: f64,
+    survey: &SurveyIndex<'_>,
     model: &ReadModel,
     c: &TagMapConfig,
 ) -> Option<MappedTag> {
+    let (antennas, pose_grid, pose_cell, reach) =
+        (survey.antennas, survey.grid, survey.cell, survey.reach);
     // First guess: each read puts the tag on the boresight at the on-axis distance of its RSS.
     let (mut sx, mut sy, mut sw) = (0.0, 0.0, 0.0);
     for (i, rss) in seen {
@@ -422,7 +438,6 @@ fn locate(
     let (gx, gy) = (sx / sw, sy / sw);
     // Sightings: the reads, and the misses from every antenna pose within reach of the window.
     let read_at: HashMap<usize, f64> = seen.iter().copied().collect();
-    let reach = model.reach();
     let (cx, cy) = cell_of(gx, gy, pose_cell);
     #[allow(clippy::cast_possible_truncation)]
     let span = ((c.search_radius + reach) / pose_cell).ceil() as i64;

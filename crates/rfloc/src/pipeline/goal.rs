@@ -91,17 +91,9 @@ impl GoalDrive {
     #[must_use]
     pub fn plan(survey: &Survey, settings: GoalSettings) -> Self {
         let table = ActionTable::seed_table();
-        let fallback = Action::ALL.map(|a| {
-            rfloc_snapshot::integrate(
-                &Pose2::default(),
-                table.nominal(a),
-                settings.action_duration_s,
-            )
-        });
-        let plan = LatticePlan::solve(
-            survey.action_model(&fallback),
-            &survey.poses(),
-            &survey.stall_places(),
+        let plan = survey.lattice_plan(
+            &table,
+            settings.action_duration_s,
             settings.goal,
             settings.radius_m,
             LatticeConfig::default(),

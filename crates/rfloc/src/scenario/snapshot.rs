@@ -63,9 +63,8 @@ use rfloc_sim::recorder::TrialRecorder;
 use rfloc_sim::Scenario;
 use rfloc_snapshot::{
     Action, ActionTable, CycleBreaker, ExplorationConfig, ExplorationInput, ExplorationPolicy,
-    FilterConfig, FingerprintMap, LatticeConfig, LatticePlan, LearnConfig, Observation, ReadModel,
-    Snapshot, SnapshotDatabase, StateFilter, Survey, TagId, TagMap, TagMapConfig, TrackConfig,
-    TrackFilter,
+    FilterConfig, FingerprintMap, LatticeConfig, LearnConfig, Observation, ReadModel, Snapshot,
+    SnapshotDatabase, StateFilter, Survey, TagId, TagMap, TagMapConfig, TrackConfig, TrackFilter,
 };
 
 use super::SimOptions;
@@ -256,18 +255,6 @@ fn read_model(scenario: &Scenario) -> ReadModel {
         antenna_offset: uhf.antenna_offset,
         ..ReadModel::seed000(uhf.threshold, READS_PER_STEP)
     }
-}
-
-/// Each action's nominal increment (Table 4 over one action's duration), for actions the
-/// survey never drove.
-fn nominal_increments(act: &Actuation) -> [Pose2; 5] {
-    Action::ALL.map(|a| {
-        rfloc_snapshot::integrate(
-            &Pose2::default(),
-            act.table.nominal(a),
-            act.action_duration_s,
-        )
-    })
 }
 
 /// Planar distance of two poses.
@@ -559,24 +546,17 @@ pub async fn run_trial(
                 .map(|w| (t.x - w.position.x).hypot(t.y - w.position.y))
         })
         .collect();
-    // The learned motion of each action (mean odometry increment of the surveyed steps that did
-    // not stall) and the places where the wheels stalled, from the survey.
-    let fallback = nominal_increments(&act);
-    let lattice_config = LatticeConfig::default();
-    let (lattice_model, lattice_poses, lattice_stalls) = (
-        survey.action_model(&fallback),
-        survey.poses(),
-        survey.stall_places(),
-    );
+    // The plan: the learned motion of each action (mean odometry increment of the surveyed
+    // steps that did not stall) and the places where the wheels stalled, from the survey.
     let goal_radius = GOAL_FRACTION * tolerance;
+    let (plan_survey, table, step_s) = (Arc::clone(&survey), act.table, act.action_duration_s);
     let lattice = tokio::task::spawn_blocking(move || {
-        LatticePlan::solve(
-            lattice_model,
-            &lattice_poses,
-            &lattice_stalls,
+        plan_survey.lattice_plan(
+            &table,
+            step_s,
             (goal.x, goal.y),
             goal_radius,
-            lattice_config,
+            LatticeConfig::default(),
         )
     })
     .await
