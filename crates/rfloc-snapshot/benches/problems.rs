@@ -112,10 +112,8 @@ pub fn tag_snapshot(
     pose: &rfloc_pose::Pose2,
 ) -> rfloc_snapshot::Snapshot {
     let a = model.antenna(pose);
-    let (sin, cos) = a.theta.sin_cos();
     rfloc_snapshot::Snapshot::from_reads(tags.iter().enumerate().filter_map(|(i, (x, y))| {
-        let (wx, wy) = (x - a.x, y - a.y);
-        let m = model.mean_rss(cos * wx + sin * wy, -sin * wx + cos * wy);
+        let m = model.mean_rss_from(&a, *x, *y);
         (m >= model.threshold).then(|| {
             (
                 rfloc_snapshot::TagId::new(vec![(i >> 8) as u8, (i & 0xff) as u8]),

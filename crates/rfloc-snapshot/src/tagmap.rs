@@ -86,6 +86,14 @@ impl ReadModel {
         sum.max(0.0) * cos
     }
 
+    /// Mean RSS of a tag at world `(x, y)` seen from the antenna pose `antenna`.
+    #[must_use]
+    pub fn mean_rss_from(&self, antenna: &Pose2, x: f64, y: f64) -> f64 {
+        let (sin, cos) = antenna.theta.sin_cos();
+        let (wx, wy) = (x - antenna.x, y - antenna.y);
+        self.mean_rss(cos * wx + sin * wy, -sin * wx + cos * wy)
+    }
+
     /// The antenna's pose for a robot pose.
     #[must_use]
     pub fn antenna(&self, robot: &Pose2) -> Pose2 {
@@ -519,11 +527,9 @@ mod tests {
         rng: &mut ChaCha8Rng,
     ) -> Snapshot {
         let a = model.antenna(pose);
-        let (sin, cos) = a.theta.sin_cos();
         let mut s = Snapshot::new();
         for (i, (x, y)) in tags.iter().enumerate() {
-            let (wx, wy) = (x - a.x, y - a.y);
-            let m = model.mean_rss(cos * wx + sin * wy, -sin * wx + cos * wy);
+            let m = model.mean_rss_from(&a, *x, *y);
             let r = m + model.read_sigma * gaussian(rng);
             if r >= model.threshold && rng.random::<f64>() >= model.dropout {
                 s.insert(TagId::new(vec![(i >> 8) as u8, (i & 0xff) as u8]), r);

@@ -201,11 +201,9 @@ fn room_read(
 ) -> Vec<(Vec<u8>, f64)> {
     use rand::Rng;
     let a = model.antenna(pose);
-    let (sin, cos) = a.theta.sin_cos();
     let mut out = Vec::new();
     for (i, (x, y)) in tags.iter().enumerate() {
-        let (wx, wy) = (x - a.x, y - a.y);
-        let m = model.mean_rss(cos * wx + sin * wy, -sin * wx + cos * wy);
+        let m = model.mean_rss_from(&a, *x, *y);
         let (u1, u2): (f64, f64) = (rng.random::<f64>().max(1e-12), rng.random());
         let r = m + model.read_sigma * (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
         if r >= model.threshold && rng.random::<f64>() >= model.dropout {
