@@ -25,7 +25,14 @@ impl Record {
     #[must_use]
     #[allow(clippy::cast_precision_loss)]
     pub fn t(&self) -> f64 {
-        self.t_ns as f64 * 1e-9
+        Self::seconds(self.t_ns)
+    }
+
+    /// A record time in nanoseconds as seconds, the one conversion every reader uses.
+    #[must_use]
+    #[allow(clippy::cast_precision_loss)]
+    pub fn seconds(t_ns: u64) -> f64 {
+        t_ns as f64 * 1e-9
     }
 
     /// The bytes of an rx or tx record.

@@ -38,7 +38,9 @@ impl WheelSlipNoise {
         let d = delta.x.hypot(delta.y);
         let (sl, sr) = wheel_travel(delta, self.track_m);
         let n = if self.interval_s > 0.0 && dt.is_finite() {
-            (dt / self.interval_s).round().max(1.0)
+            // Continuous in `dt`: a jitter in when odometry is sampled changes the covariance
+            // by as little, instead of jumping by one whole interval at a rounding boundary.
+            (dt / self.interval_s).max(1.0)
         } else {
             1.0
         };
@@ -77,6 +79,24 @@ mod tests {
         // Half the intervals of the same travel: twice the variance.
         let fast = m.increment_covariance(&Pose2::new(0.03, 0.0, 0.0), 0.05);
         assert!(((fast[(0, 0)] - 1e-10) / (c[(0, 0)] - 1e-10) - 2.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn sampling_jitter_changes_the_covariance_by_as_little() {
+        let m = WheelSlipNoise {
+            relative_sigma: 0.05,
+            track_m: 0.4,
+            interval_s: 0.01,
+        };
+        let step = Pose2::new(0.03, 0.0, 0.0);
+        // 0.1049 s and 0.1051 s straddle 10.5 intervals: 0.2 % apart, not 10 %.
+        let a = m.increment_covariance(&step, 0.1049)[(0, 0)] - 1e-10;
+        let b = m.increment_covariance(&step, 0.1051)[(0, 0)] - 1e-10;
+        assert!((a / b - 0.1051 / 0.1049).abs() < 1e-9, "{a} {b}");
+        // Shorter than one interval counts as one.
+        let short = m.increment_covariance(&step, 0.001)[(0, 0)];
+        let one = m.increment_covariance(&step, 0.01)[(0, 0)];
+        assert!((short - one).abs() < 1e-18);
     }
 
     #[test]

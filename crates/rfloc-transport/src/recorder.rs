@@ -169,11 +169,13 @@ impl CaptureSink {
         }
     }
 
-    fn record(&self, kind: RecordKind) {
+    /// Records `kind` at the clock's reading and returns that reading in nanoseconds.
+    fn record(&self, kind: RecordKind) -> u64 {
         let t = self.now_ns();
         if let Ok(mut s) = self.state.lock() {
             s.record(t, kind);
         }
+        t
     }
 
     /// Coalescing on or off (default off: a record is one read or one write). On, consecutive
@@ -212,9 +214,12 @@ impl CaptureSink {
         self.state.lock().map_or(0, |s| s.tx_bytes)
     }
 
-    /// Appends an `ev` record (for example `mark turn-start`).
-    pub fn event(&self, text: &str) {
-        self.record(RecordKind::Event(text.replace(['\n', '\r'], " ")));
+    /// Appends an `ev` record (for example `mark turn-start`) and returns its time in seconds,
+    /// exactly as a reader of the file computes it ([`rfloc_capture::Record::t`]): a driver that
+    /// stamps the event it derives from the mark with this time gets the same time in replay.
+    pub fn event(&self, text: &str) -> f64 {
+        let ns = self.record(RecordKind::Event(text.replace(['\n', '\r'], " ")));
+        rfloc_capture::Record::seconds(ns)
     }
 
     /// Flushes buffered records to the file.

@@ -319,14 +319,18 @@ async fn serve_sweeps<T: AsyncRead + AsyncWrite + Unpin + Send>(
             () = ctx.stop.cancelled() => return false,
             r = runner.scan(move || heading) => r,
         };
-        if let Some(c) = capture {
-            let angles: Vec<f64> = match &scanned {
-                Ok(r) => r.sweep.samples.iter().map(|s| s.antenna_rad).collect(),
-                Err(_) => Vec::new(),
-            };
-            c.event(&sweep_end_mark(&angles));
-        }
-        let t = ctx.clock.now();
+        // The sweep's time is its end mark's, so a replay of the capture gives the pipeline
+        // the same time the daemon did.
+        let t = match capture {
+            Some(c) => {
+                let angles: Vec<f64> = match &scanned {
+                    Ok(r) => r.sweep.samples.iter().map(|s| s.antenna_rad).collect(),
+                    Err(_) => Vec::new(),
+                };
+                c.event(&sweep_end_mark(&angles))
+            }
+            None => ctx.clock.now(),
+        };
         let (result, lost) = match scanned {
             Ok(r) => (Ok(swept_beacons(&r.report)), false),
             Err(e) => {
