@@ -146,6 +146,52 @@ pub struct XbeeSettings {
     /// Node discovery timeout in seconds (`NT`).
     #[serde(default = "default_nt")]
     pub discovery_timeout_s: f64,
+    /// What the radio is for: `sweep` (in the turning reflector, `ND` rounds per stop; seed
+    /// 003) or `emitter_receiver` (one of four fixed reflectors, polling the emitter's RSSI;
+    /// seed 001).
+    #[serde(default)]
+    pub role: XbeeRole,
+    /// `emitter_receiver`: which reflector the radio sits behind.
+    pub antenna: Option<AntennaSide>,
+    /// `emitter_receiver`: the emitter radio's 64-bit address (16 hex digits).
+    pub emitter: Option<String>,
+    /// `emitter_receiver`: seconds between RSSI polls.
+    #[serde(default = "default_poll_period")]
+    pub poll_period_s: f64,
+}
+fn default_poll_period() -> f64 {
+    0.2
+}
+
+/// What an XBee radio of the robot does.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum XbeeRole {
+    /// Antenna sweeps on the pipeline's request.
+    #[default]
+    Sweep,
+    /// RSSI of the emitter's replies, polled (remote `DB` to the emitter, then local `DB`).
+    EmitterReceiver,
+}
+
+/// The four fixed reflectors of the emitter-homing robot, 90° apart.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AntennaSide {
+    Front,
+    Left,
+    Back,
+    Right,
+}
+
+impl XbeeSettings {
+    /// The emitter's address of an `emitter_receiver`, parsed.
+    #[must_use]
+    pub fn emitter_address(&self) -> Option<u64> {
+        self.emitter
+            .as_deref()
+            .and_then(|a| u64::from_str_radix(a.trim_start_matches("0x"), 16).ok())
+    }
 }
 fn default_api_mode() -> u8 {
     2
@@ -194,6 +240,9 @@ pub enum EstimatorConfig {
     Ekfslam(EkfSlamSettings),
     /// UHF tag snapshots: learned states, histogram filter, MDP navigation.
     Snapshot(SnapshotSettings),
+    /// One RF emitter homed with four fixed receivers, a particle filter, an occupancy grid
+    /// and A* (seed 001).
+    Emitter(EmitterSettings),
 }
 
 impl EstimatorConfig {
@@ -204,6 +253,7 @@ impl EstimatorConfig {
             EstimatorConfig::Hfgrid(_) => "hfgrid",
             EstimatorConfig::Ekfslam(_) => "ekfslam",
             EstimatorConfig::Snapshot(_) => "snapshot",
+            EstimatorConfig::Emitter(_) => "emitter",
         }
     }
 
@@ -215,8 +265,83 @@ impl EstimatorConfig {
             EstimatorConfig::Hfgrid(_) => &["kts"],
             EstimatorConfig::Ekfslam(_) => &["aria", "xbee", "stepper"],
             EstimatorConfig::Snapshot(_) => &["aria", "alien"],
+            EstimatorConfig::Emitter(_) => &["aria", "xbee"],
         }
     }
+}
+
+/// Parameters of the emitter-homing pipeline (seed 001; its constants where it gives them).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EmitterSettings {
+    /// Start pose of the robot (metres, degrees); the pose is the start composed with odometry.
+    #[serde(default)]
+    pub start: [f64; 3],
+    /// `A1`: mean RSS of the four receivers with the emitter at 1 m, dBm (from a calibration).
+    pub a1_dbm_at_1m: f64,
+    /// `A2`: path-loss exponent of that calibration.
+    #[serde(default = "default_a2")]
+    pub path_loss_exponent: f64,
+    /// Particles of the emitter filter (seed: 1000).
+    #[serde(default = "default_particles")]
+    pub particles: usize,
+    /// The seed's full system (occupancy grid and A*); false runs its preliminary one.
+    #[serde(default = "default_true")]
+    pub full_system: bool,
+    /// Occupancy grid cell side, metres (seed: 0.2).
+    #[serde(default = "default_cell")]
+    pub grid_cell_m: f64,
+    /// Side of the square map centred on the start, metres.
+    #[serde(default = "default_map_side")]
+    pub map_side_m: f64,
+    /// Seconds between control steps (filter update and command).
+    #[serde(default = "default_control_period")]
+    pub control_period_s: f64,
+    /// Receiver readings older than this at a control step are not combined, seconds.
+    #[serde(default = "default_reading_window")]
+    pub reading_window_s: f64,
+    /// Avoid obstacles closer than this to the laser, metres (seed: 0.2 from the body).
+    #[serde(default = "default_obstacle")]
+    pub obstacle_distance_m: f64,
+    /// Stop this close to the estimate, metres (seed: 0.5).
+    #[serde(default = "default_arrival")]
+    pub arrival_distance_m: f64,
+    /// Forward speed, m/s.
+    #[serde(default = "default_drive_speed")]
+    pub drive_speed_mps: f64,
+    /// Seed of the particle filter's generator.
+    #[serde(default)]
+    pub seed: u64,
+}
+fn default_a2() -> f64 {
+    2.0
+}
+fn default_particles() -> usize {
+    1000
+}
+fn default_true() -> bool {
+    true
+}
+fn default_cell() -> f64 {
+    0.2
+}
+fn default_map_side() -> f64 {
+    12.0
+}
+fn default_control_period() -> f64 {
+    0.2
+}
+fn default_reading_window() -> f64 {
+    0.5
+}
+fn default_obstacle() -> f64 {
+    0.4
+}
+fn default_arrival() -> f64 {
+    0.3
+}
+fn default_drive_speed() -> f64 {
+    0.3
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -756,6 +881,29 @@ impl RobotConfig {
                         "must be in [0.1, 25.5] seconds (NT)".into(),
                     ));
                 }
+                if x.role == XbeeRole::EmitterReceiver {
+                    if x.antenna.is_none() {
+                        return Err(err(
+                            &format!("device[{i}].driver.role"),
+                            "an emitter_receiver needs antenna = front, left, back or right".into(),
+                        ));
+                    }
+                    if x.emitter_address().is_none() {
+                        return Err(err(
+                            &format!("device[{i}].driver.emitter"),
+                            format!(
+                                "an emitter_receiver needs the emitter's 64-bit address in hex, not {:?}",
+                                x.emitter
+                            ),
+                        ));
+                    }
+                    if !(x.poll_period_s.is_finite() && x.poll_period_s >= 0.01) {
+                        return Err(err(
+                            &format!("device[{i}].driver.poll_period_s"),
+                            "must be at least 0.01 s".into(),
+                        ));
+                    }
+                }
             }
             if let DriverConfig::Stepper(st) = &d.driver {
                 if st.steps_per_rev == 0
@@ -854,6 +1002,55 @@ impl RobotConfig {
                     "estimator",
                     "p_ref_dbm, start and waypoints must be finite numbers".into(),
                 ));
+            }
+        }
+        if let EstimatorConfig::Emitter(e) = &self.estimator {
+            for (key, value) in [
+                ("path_loss_exponent", e.path_loss_exponent),
+                ("grid_cell_m", e.grid_cell_m),
+                ("map_side_m", e.map_side_m),
+                ("control_period_s", e.control_period_s),
+                ("reading_window_s", e.reading_window_s),
+                ("obstacle_distance_m", e.obstacle_distance_m),
+                ("arrival_distance_m", e.arrival_distance_m),
+                ("drive_speed_mps", e.drive_speed_mps),
+            ] {
+                if !(value.is_finite() && value > 0.0) {
+                    return Err(err(
+                        &format!("estimator.{key}"),
+                        format!("must be a positive number, not {value}"),
+                    ));
+                }
+            }
+            if !(e.a1_dbm_at_1m.is_finite() && e.start.iter().all(|v| v.is_finite())) {
+                return Err(err(
+                    "estimator",
+                    "a1_dbm_at_1m and start must be finite numbers".into(),
+                ));
+            }
+            if e.particles == 0 {
+                return Err(err("estimator.particles", "must be at least 1".into()));
+            }
+            let mut sides = Vec::new();
+            for d in &self.devices {
+                if let DriverConfig::Xbee(x) = &d.driver {
+                    if x.role == XbeeRole::EmitterReceiver {
+                        sides.extend(x.antenna);
+                    }
+                }
+            }
+            for side in [
+                AntennaSide::Front,
+                AntennaSide::Left,
+                AntennaSide::Back,
+                AntennaSide::Right,
+            ] {
+                if sides.iter().filter(|s| **s == side).count() != 1 {
+                    return Err(err(
+                        "estimator.pipeline",
+                        format!("pipeline \"emitter\" needs exactly one XBee with role = \"emitter_receiver\" and antenna = {:?}", format!("{side:?}").to_lowercase()),
+                    ));
+                }
             }
         }
         if let EstimatorConfig::Snapshot(s) = &self.estimator {

@@ -253,10 +253,12 @@ pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
         let span =
             tracing::info_span!("device", name = %device.name, driver = device.driver.kind());
         let sweep = match &device.driver {
-            DriverConfig::Xbee(_) => antenna.take().map(|antenna| devices::SweepSetup {
-                antenna,
-                scan: pipeline::scan_config(&cfg.estimator),
-            }),
+            DriverConfig::Xbee(x) if x.role == crate::config::XbeeRole::Sweep => {
+                antenna.take().map(|antenna| devices::SweepSetup {
+                    antenna,
+                    scan: pipeline::scan_config(&cfg.estimator),
+                })
+            }
             _ => None,
         };
         let spawned = devices::spawn(ctx, span.clone(), sweep);
@@ -267,6 +269,9 @@ pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
             sweeps = spawned.sweeps;
         }
         device_tasks.push(spawned.task);
+    }
+    if let (Some(sim), crate::config::EstimatorConfig::Emitter(e)) = (&mut sim, &cfg.estimator) {
+        sim.spawn_laser(ev_tx.clone(), e.control_period_s, stop.clone());
     }
     drop(ev_tx);
 

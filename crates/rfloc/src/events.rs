@@ -3,7 +3,9 @@
 use rfloc_kts::{TagEvent, TagEventKind};
 use rfloc_pose::Pose2;
 
+use crate::config::AntennaSide;
 use crate::message::DeviceState;
+pub use rfloc_emitter::ScanBeam;
 
 /// One observation or status change from a device task.
 #[derive(Debug, Clone)]
@@ -41,6 +43,20 @@ pub enum DeviceEvent {
         device: String,
         t: f64,
         result: Result<Vec<SweptBeacon>, String>,
+    },
+    /// One RSSI poll of an emitter receiver (seed 001): what the radio behind `antenna`
+    /// measured on the emitter's answer, dBm; `None` when the emitter did not answer.
+    EmitterRss {
+        device: String,
+        t: f64,
+        antenna: AntennaSide,
+        dbm: Option<f64>,
+    },
+    /// One scan of a range finder centred on the robot (beam angles from its heading).
+    RangeScan {
+        device: String,
+        t: f64,
+        beams: Vec<ScanBeam>,
     },
     /// A marker from a capture or a motion script, e.g. `stop 3 heading_deg=135`.
     Mark {
@@ -80,6 +96,8 @@ impl DeviceEvent {
             | DeviceEvent::HfTag { device, .. }
             | DeviceEvent::UhfSnapshot { device, .. }
             | DeviceEvent::Sweep { device, .. }
+            | DeviceEvent::EmitterRss { device, .. }
+            | DeviceEvent::RangeScan { device, .. }
             | DeviceEvent::Mark { device, .. }
             | DeviceEvent::Status { device, .. } => device,
         }
@@ -114,6 +132,8 @@ impl DeviceEvent {
             | DeviceEvent::HfTag { t, .. }
             | DeviceEvent::UhfSnapshot { t, .. }
             | DeviceEvent::Sweep { t, .. }
+            | DeviceEvent::EmitterRss { t, .. }
+            | DeviceEvent::RangeScan { t, .. }
             | DeviceEvent::Mark { t, .. } => Some(*t),
             DeviceEvent::Status { .. } => None,
         }

@@ -6,7 +6,7 @@ use tokio::sync::mpsc;
 use tokio::task::JoinHandle;
 use tracing::Instrument;
 
-use crate::config::DriverConfig;
+use crate::config::{DriverConfig, XbeeRole};
 use crate::daemon::DeviceContext;
 use crate::message::DeviceState;
 
@@ -14,6 +14,7 @@ mod alien;
 mod aria;
 mod kts;
 mod xbee;
+mod xbee_receiver;
 
 pub use alien::{average_reads, parse_snapshot_mark, snapshot_mark};
 pub use xbee::{swept_beacons, AntennaSource, NdRssiProbe, SweepMark, SweepRequest, SweepSetup};
@@ -49,6 +50,9 @@ pub fn spawn(ctx: DeviceContext, span: tracing::Span, sweep: Option<SweepSetup>)
         }
         DriverConfig::Kts(s) => plain(tokio::spawn(kts::run(ctx, s).instrument(span))),
         DriverConfig::Alien(s) => plain(tokio::spawn(alien::run(ctx, s).instrument(span))),
+        DriverConfig::Xbee(s) if s.role == XbeeRole::EmitterReceiver => {
+            plain(tokio::spawn(xbee_receiver::run(ctx, s).instrument(span)))
+        }
         DriverConfig::Xbee(s) => {
             let (tx, rx) = mpsc::channel(1);
             SpawnedDevice {

@@ -369,6 +369,8 @@ impl Pipeline for EkfSlamPipeline {
             | DeviceEvent::UhfSnapshot { .. }
             | DeviceEvent::Mark { .. }
             | DeviceEvent::WheelStall { .. }
+            | DeviceEvent::EmitterRss { .. }
+            | DeviceEvent::RangeScan { .. }
             | DeviceEvent::Status { .. } => None,
         }
     }

@@ -265,6 +265,8 @@ impl HfGridPipeline {
             }
             DeviceEvent::Status { .. }
             | DeviceEvent::WheelStall { .. }
+            | DeviceEvent::EmitterRss { .. }
+            | DeviceEvent::RangeScan { .. }
             | DeviceEvent::UhfSnapshot { .. }
             | DeviceEvent::Sweep { .. } => None,
         }
@@ -313,6 +315,8 @@ impl Pipeline for HfGridPipeline {
                 DeviceEvent::Mark { .. }
                 | DeviceEvent::Status { .. }
                 | DeviceEvent::WheelStall { .. }
+                | DeviceEvent::EmitterRss { .. }
+                | DeviceEvent::RangeScan { .. }
                 | DeviceEvent::UhfSnapshot { .. }
                 | DeviceEvent::Sweep { .. } => None,
             },

@@ -6,12 +6,14 @@ use crate::config::EstimatorConfig;
 use crate::events::DeviceEvent;
 
 mod ekfslam;
+pub mod emitter;
 mod goal;
 mod hfgrid;
 mod odometry;
 mod snapshot;
 
 pub use ekfslam::EkfSlamPipeline;
+pub use emitter::EmitterPipeline;
 pub use hfgrid::HfGridPipeline;
 pub use odometry::OdometryPipeline;
 pub use snapshot::SnapshotPipeline;
@@ -53,6 +55,14 @@ pub fn build(config: &EstimatorConfig, state_dir: Option<&std::path::Path>) -> B
                 warned: false,
             }),
         },
+        EstimatorConfig::Emitter(s) => match EmitterPipeline::new(s) {
+            Ok(p) => Box::new(p),
+            Err(e) => Box::new(Unavailable {
+                name: config.name(),
+                reason: e,
+                warned: false,
+            }),
+        },
     }
 }
 
@@ -76,6 +86,7 @@ pub fn drives_base(config: &EstimatorConfig) -> bool {
     match config {
         EstimatorConfig::Ekfslam(e) => !e.waypoints.is_empty(),
         EstimatorConfig::Snapshot(s) => s.goal.is_some(),
+        EstimatorConfig::Emitter(_) => true,
         _ => false,
     }
 }

@@ -45,7 +45,6 @@ use rfloc_sim::{Pipeline, Point, Scenario};
 use super::SimOptions;
 
 mod calibration;
-mod homing;
 mod run;
 
 use run::{capture_path, run_system, RunOutcome, RunSpec};

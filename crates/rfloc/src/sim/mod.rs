@@ -26,7 +26,10 @@ use rfloc_xbee::{
     EmulatorConfig as XBeeEmulatorConfig, NdLayout, RssiFn,
 };
 
-use crate::config::{DriverConfig, EstimatorConfig, RobotConfig, SimulationConfig};
+use crate::config::{
+    AntennaSide, DriverConfig, EstimatorConfig, RobotConfig, SimulationConfig, XbeeRole,
+};
+use crate::events::{DeviceEvent, ScanBeam};
 
 pub(crate) mod walls;
 use crate::devices::MotionSender;
@@ -90,6 +93,8 @@ pub struct SimRuntime {
     /// with the estimates: the baseline an estimator has to beat.
     dead_reckoning: TruthScore,
     start: Pose2,
+    /// The emitter scenario's sensor models and world (receivers, laser), when it has one.
+    sensors: Option<(Arc<Mutex<rfloc_sim::SensorSuite>>, Arc<rfloc_sim::World>)>,
 }
 
 /// Published poses scored against the emulated robot's true pose.
@@ -239,6 +244,7 @@ pub async fn start(
         score: TruthScore::default(),
         dead_reckoning: TruthScore::default(),
         start: Pose2::new(sim.start[0], sim.start[1], sim.start[2].to_radians()),
+        sensors: None,
     };
     let start = Pose2::new(sim.start[0], sim.start[1], sim.start[2].to_radians());
     let scenario = match &sim.scenario {
@@ -255,6 +261,9 @@ pub async fn start(
     let snapshot_world = scenario
         .as_ref()
         .filter(|s| s.spec.pipeline == rfloc_sim::scenario::Pipeline::Snapshot);
+    // An emitter scenario's robot: a slip-free base (the seed takes odometry as its pose),
+    // walled in by its world.
+    let emitter_world = scenario.as_ref().filter(|s| s.world.emitter.is_some());
     let antenna_offset = match &cfg.estimator {
         EstimatorConfig::Hfgrid(h) => h.antenna_offset_m,
         _ => 0.10,
@@ -276,6 +285,20 @@ pub async fn start(
                 Arc::new(sc.world.clone()),
                 sc.spec.robot.drive.body_radius,
             )),
+            None if emitter_world.is_some() => {
+                let sc = emitter_world.context("emitter world")?;
+                RobotEmulator::new(RobotEmulatorConfig {
+                    time_scale: sim.time_scale,
+                    initial_pose: start,
+                    noise_seed: sim.seed,
+                    slip: None,
+                    ..RobotEmulatorConfig::default()
+                })
+                .with_motion_hook(walls::wall_hook(
+                    Arc::new(sc.world.clone()),
+                    sc.spec.robot.drive.body_radius,
+                ))
+            }
             None => RobotEmulator::new(RobotEmulatorConfig {
                 time_scale: sim.time_scale,
                 initial_pose: start,
@@ -327,10 +350,18 @@ pub async fn start(
         device.link = Some(link);
         runtime._slaves.push(slave);
     }
+    let is_receiver = |d: &DriverConfig| matches!(d, DriverConfig::Xbee(x) if x.role == XbeeRole::EmitterReceiver);
+    if cfg.devices.iter().any(|d| is_receiver(&d.driver)) {
+        let scenario = scenario
+            .as_ref()
+            .filter(|s| s.world.emitter.is_some())
+            .context("emulated emitter receivers need [simulation] scenario with an emitter")?;
+        start_emitter_receivers(cfg, scenario, start, &mut runtime)?;
+    }
     let has_xbee = cfg
         .devices
         .iter()
-        .any(|d| matches!(d.driver, DriverConfig::Xbee(_)));
+        .any(|d| matches!(&d.driver, DriverConfig::Xbee(x) if x.role == XbeeRole::Sweep));
     if has_xbee {
         let scenario = scenario
             .as_ref()
@@ -436,6 +467,9 @@ fn start_xbee(
         let DriverConfig::Xbee(x) = &device.driver else {
             continue;
         };
+        if x.role != XbeeRole::Sweep {
+            continue;
+        }
         let mode = if x.api_mode == 1 {
             ApiMode::Unescaped
         } else {
@@ -481,6 +515,139 @@ fn start_xbee(
         runtime._slaves.push(slave);
     }
     Ok(())
+}
+
+/// The seed-001 receivers: one emulated XBee per reflector, each knowing one node (the emitter,
+/// at the address of the receiver's settings). Its RSSI is the scenario's emitter model for
+/// that reflector at the emulated robot's true pose (shadowing, fading and walls included),
+/// quantised to whole dB by the `DB` byte.
+fn start_emitter_receivers(
+    cfg: &mut RobotConfig,
+    scenario: &rfloc_sim::Scenario,
+    start: Pose2,
+    runtime: &mut SimRuntime,
+) -> anyhow::Result<()> {
+    let world = Arc::new(scenario.world.clone());
+    let sensors = Arc::new(Mutex::new(rfloc_sim::SensorSuite::for_trial(scenario, 0)));
+    runtime.sensors = Some((Arc::clone(&sensors), Arc::clone(&world)));
+    for device in cfg.devices.iter_mut() {
+        let DriverConfig::Xbee(x) = &device.driver else {
+            continue;
+        };
+        if x.role != XbeeRole::EmitterReceiver {
+            continue;
+        }
+        let (Some(side), Some(address)) = (x.antenna, x.emitter_address()) else {
+            anyhow::bail!(
+                "emitter receiver {:?} needs antenna and emitter",
+                device.name
+            );
+        };
+        // rfloc-sim orders the reflectors front, left, back, right.
+        let index = match side {
+            AntennaSide::Front => 0,
+            AntennaSide::Left => 1,
+            AntennaSide::Back => 2,
+            AntennaSide::Right => 3,
+        };
+        let mode = if x.api_mode == 1 {
+            ApiMode::Unescaped
+        } else {
+            ApiMode::Escaped
+        };
+        let base = runtime.base.clone();
+        let (world, sensors) = (Arc::clone(&world), Arc::clone(&sensors));
+        let rssi: RssiFn = Arc::new(move |_| {
+            let pose = base.as_ref().map_or(start, EmulatorHandle::truth);
+            let mut suite = sensors.lock().ok()?;
+            suite
+                .emitter_rss(&world, &pose)
+                .get(index)
+                .copied()
+                .flatten()
+        });
+        let emitter = Beacon {
+            address: Address64(address),
+            network_address: Address16(0x2000),
+            ni: "emitter".into(),
+        };
+        let (master, slave, link) = pty_link(115_200)?;
+        let emulator = CoordinatorEmulator::new(
+            vec![emitter],
+            rssi,
+            XBeeEmulatorConfig {
+                mode,
+                ..XBeeEmulatorConfig::default()
+            },
+        );
+        let stop = runtime.emulators.clone();
+        runtime.tasks.push(tokio::spawn(async move {
+            tokio::select! {
+                () = stop.cancelled() => {}
+                r = emulator.serve(master) => if let Err(e) = r { tracing::warn!(error = %e, "XBee emulator ended") },
+            }
+        }));
+        tracing::info!(device = %device.name, antenna = ?side, link = %link.describe(), "emulated emitter receiver on a pty");
+        device.link = Some(link);
+        runtime._slaves.push(slave);
+    }
+    Ok(())
+}
+
+impl SimRuntime {
+    /// The simulated laser range finder of an emitter scenario (seed 001 gives it no wire
+    /// protocol, nor does rfloc): every `period_s` simulated seconds one scan of the scenario's
+    /// scanner model at the emulated robot's true pose, sent as a [`DeviceEvent::RangeScan`]
+    /// from device `laser`. Does nothing without emitter receivers or a base.
+    pub fn spawn_laser(
+        &mut self,
+        events: tokio::sync::mpsc::Sender<DeviceEvent>,
+        period_s: f64,
+        stop: CancellationToken,
+    ) {
+        let (Some((sensors, world)), Some(base)) = (self.sensors.clone(), self.base.clone()) else {
+            return;
+        };
+        let wall = Duration::from_secs_f64(period_s / self.config.time_scale.max(1e-6));
+        tracing::info!(
+            period_s,
+            "simulated laser range finder (in-process, no wire protocol)"
+        );
+        self.tasks.push(tokio::spawn(async move {
+            let mut ticker = tokio::time::interval(wall);
+            ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+            loop {
+                tokio::select! {
+                    () = stop.cancelled() => return,
+                    _ = ticker.tick() => {}
+                }
+                let state = base.state();
+                let beams: Vec<ScanBeam> = {
+                    let Ok(mut suite) = sensors.lock() else {
+                        return;
+                    };
+                    let max_range = suite.scanner.max_range;
+                    suite
+                        .laser_scan(&world, &state.truth)
+                        .into_iter()
+                        .map(|b| ScanBeam {
+                            angle_rad: b.angle,
+                            range_m: if b.hit { b.range } else { max_range },
+                            max_range_m: max_range,
+                        })
+                        .collect()
+                };
+                let event = DeviceEvent::RangeScan {
+                    device: "laser".into(),
+                    t: state.sim_time,
+                    beams,
+                };
+                if events.send(event).await.is_err() {
+                    return;
+                }
+            }
+        }));
+    }
 }
 
 /// Drives the base through the configured motion script (in simulated time).

@@ -65,6 +65,32 @@ mod tests {
     use super::*;
 
     #[test]
+    fn the_simulated_emitter_robot_file_carries_this_calibration() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+        let path = root.join("config/sim-emitter.toml");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let cfg = crate::config::RobotConfig::parse(&text, "sim-emitter.toml").unwrap();
+        let crate::config::EstimatorConfig::Emitter(e) = &cfg.estimator else {
+            panic!("not an emitter pipeline");
+        };
+        let sim = cfg.simulation.as_ref().unwrap();
+        let scenario =
+            rfloc_sim::Scenario::load(&root.join("config").join(sim.scenario.as_ref().unwrap()))
+                .unwrap();
+        let power = scenario.world.emitter.unwrap().power_dbm;
+        let cal = calibrate(&scenario.emitter_model(), power).unwrap();
+        assert!(
+            (cal.a1_dbm_at_1m - e.a1_dbm_at_1m).abs() < 0.05
+                && (cal.a2_path_loss_exponent - e.path_loss_exponent).abs() < 0.005,
+            "calibration A1 {:.2} dBm, A2 {:.3}; the file has {} and {}",
+            cal.a1_dbm_at_1m,
+            cal.a2_path_loss_exponent,
+            e.a1_dbm_at_1m,
+            e.path_loss_exponent
+        );
+    }
+
+    #[test]
     fn free_space_model_gives_exponent_two_and_its_reference_level() {
         let model = EmitterModel::default();
         let cal = calibrate(&model, 0.0).unwrap();

@@ -30,7 +30,7 @@ use rfloc_sim::{Point, Scenario, SensorSuite};
 use rfloc_transport::{CaptureSink, LinkConfig, Recorder, SharedClock};
 
 use super::calibration::calibrate;
-use super::homing::{EmitterHoming, HomingConfig};
+use crate::pipeline::emitter::{EmitterHoming, HomingConfig};
 use crate::scenario::lockstep::{driver_config, LockstepBase};
 use crate::sim::walls::wall_hook;
 use crate::sim::{trial_capture, EmulatorClock};

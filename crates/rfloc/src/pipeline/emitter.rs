@@ -1,0 +1,421 @@
+//! Emitter homing in the daemon (seed 001): four fixed receivers' RSSI polls, the base's
+//! odometry and a range finder's scans in; robot poses and velocity commands out.
+//!
+//! - **Pose.** As in the seed, the robot's pose is its start composed with the odometry,
+//!   published as `degraded` with the dead-reckoning covariance of the odometry pipeline.
+//! - **Control steps** fall on odometry events, every `control_period_s`. A step combines the
+//!   newest reading of each receiver if all four are younger than `reading_window_s` (each
+//!   reading is used once) and feeds it to the particle filter at the step's pose; then the
+//!   navigator, given the latest scan and the filtered estimate, makes a velocity request.
+//! - **Scans** go into the occupancy grid (full system) as they arrive, at the latest pose.
+//! - **Bumpers.** The emulated base reports no bumper contacts and the SIPs' bumper bits are
+//!   not yet forwarded as events, so the navigator's bumper reflex never fires here; the laser
+//!   keeps the robot off walls.
+
+use rfloc_emitter::{
+    AntennaRss, Bumpers, DifferentialRssConfig, NavigatorConfig, NavigatorState,
+    OccupancyGridConfig, ParticleFilterConfig, Point2,
+};
+use rfloc_pose::{Pose2, PoseEstimate};
+
+use crate::config::{AntennaSide, EmitterSettings};
+use crate::events::DeviceEvent;
+use crate::pipeline::{OdometryPipeline, Pipeline, Request};
+
+pub mod homing;
+
+pub use homing::{EmitterHoming, HomingConfig};
+
+/// Seconds between `emitter estimate` log lines at info level.
+const LOG_EVERY_S: f64 = 5.0;
+
+/// The homing configuration a robot file describes, for a robot starting at `start`.
+#[must_use]
+pub fn homing_config(s: &EmitterSettings, start: &Pose2) -> HomingConfig {
+    let cells = (s.map_side_m / s.grid_cell_m).round().max(1.0) as usize;
+    HomingConfig {
+        rss: DifferentialRssConfig {
+            a1_dbm_at_1m: s.a1_dbm_at_1m,
+            a2_path_loss_exponent: s.path_loss_exponent,
+            ..DifferentialRssConfig::default()
+        },
+        filter: ParticleFilterConfig {
+            particle_count: s.particles,
+            ..ParticleFilterConfig::default()
+        },
+        grid: OccupancyGridConfig {
+            resolution_m: s.grid_cell_m,
+            width: cells,
+            height: cells,
+            origin: Point2::new(start.x - s.map_side_m / 2.0, start.y - s.map_side_m / 2.0),
+            ..OccupancyGridConfig::default()
+        },
+        navigator: NavigatorConfig {
+            use_planner: s.full_system,
+            obstacle_distance_m: s.obstacle_distance_m,
+            arrival_distance_m: s.arrival_distance_m,
+            drive_speed_mps: s.drive_speed_mps,
+            ..NavigatorConfig::default()
+        },
+        seed: s.seed,
+    }
+}
+
+/// Counters of one run.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct EmitterCounters {
+    /// Control steps taken.
+    pub steps: u64,
+    /// Filter updates (steps with all four receivers fresh).
+    pub updates: u64,
+    /// Steps without a fresh reading of every receiver.
+    pub incomplete: u64,
+    /// Polls the emitter did not answer.
+    pub unanswered: u64,
+    /// Scans integrated.
+    pub scans: u64,
+    /// Times the navigator came to a stop at the emitter.
+    pub arrivals: u64,
+}
+
+/// The emitter-homing pipeline.
+#[derive(Debug)]
+pub struct EmitterPipeline {
+    homing: EmitterHoming,
+    start: Pose2,
+    dead_reckoning: OdometryPipeline,
+    /// The latest published pose (start ∘ odometry).
+    pose: Option<Pose2>,
+    /// Newest reading per receiver: front, left, back, right; (time, dBm).
+    readings: [Option<(f64, f64)>; 4],
+    control_period_s: f64,
+    reading_window_s: f64,
+    next_control: Option<f64>,
+    next_log: f64,
+    arrived: bool,
+    estimate: Option<Point2>,
+    requests: Vec<Request>,
+    counters: EmitterCounters,
+}
+
+fn slot(side: AntennaSide) -> usize {
+    match side {
+        AntennaSide::Front => 0,
+        AntennaSide::Left => 1,
+        AntennaSide::Back => 2,
+        AntennaSide::Right => 3,
+    }
+}
+
+impl EmitterPipeline {
+    /// A pipeline for the settings of a robot file.
+    ///
+    /// # Errors
+    /// Filter or grid settings the emitter crate refuses.
+    pub fn new(s: &EmitterSettings) -> Result<Self, String> {
+        let start = Pose2::new(s.start[0], s.start[1], s.start[2].to_radians());
+        let homing =
+            EmitterHoming::new(homing_config(s, &start), &start).map_err(|e| format!("{e:#}"))?;
+        Ok(Self {
+            homing,
+            start,
+            dead_reckoning: OdometryPipeline::default(),
+            pose: None,
+            readings: [None; 4],
+            control_period_s: s.control_period_s,
+            reading_window_s: s.reading_window_s,
+            next_control: None,
+            next_log: 0.0,
+            arrived: false,
+            estimate: None,
+            requests: Vec::new(),
+            counters: EmitterCounters::default(),
+        })
+    }
+
+    /// Counters so far.
+    #[must_use]
+    pub fn counters(&self) -> EmitterCounters {
+        self.counters
+    }
+
+    /// The filtered emitter position, once there is one.
+    #[must_use]
+    pub fn estimate(&self) -> Option<Point2> {
+        self.estimate
+    }
+
+    /// The four receivers' readings if all are fresh at `t`; they are then used up.
+    fn take_fresh(&mut self, t: f64) -> Option<AntennaRss> {
+        let window = self.reading_window_s;
+        let fresh = |r: Option<(f64, f64)>| r.filter(|(rt, _)| t - rt <= window).map(|r| r.1);
+        let [front, left, back, right] = self.readings.map(fresh);
+        let rss = AntennaRss {
+            front: front?,
+            back: back?,
+            left: left?,
+            right: right?,
+        };
+        self.readings = [None; 4];
+        Some(rss)
+    }
+
+    fn control_step(&mut self, t: f64, pose: Pose2) {
+        self.counters.steps += 1;
+        match self.take_fresh(t) {
+            Some(rss) => {
+                if let Some(est) = self.homing.observe_rss(t, &pose, &rss) {
+                    self.counters.updates += 1;
+                    self.estimate = Some(est.mean);
+                    tracing::debug!(
+                        x = est.mean.x,
+                        y = est.mean.y,
+                        raw_x = est.raw.x,
+                        raw_y = est.raw.y,
+                        "emitter estimate"
+                    );
+                    if t >= self.next_log {
+                        self.next_log = t + LOG_EVERY_S;
+                        tracing::info!(
+                            x = est.mean.x,
+                            y = est.mean.y,
+                            range_m = est.filtered_range_bearing.range_m,
+                            updates = self.counters.updates,
+                            "emitter estimate"
+                        );
+                    }
+                }
+            }
+            None => self.counters.incomplete += 1,
+        }
+        let cmd = self.homing.command(t, pose, Bumpers::default());
+        let arrived = cmd.state == NavigatorState::Arrived;
+        if arrived && !self.arrived {
+            self.counters.arrivals += 1;
+            let (x, y) = self.estimate.map_or((f64::NAN, f64::NAN), |p| (p.x, p.y));
+            let arrivals = self.counters.arrivals;
+            let plans = self.homing.plan_count();
+            if arrivals == 1 {
+                tracing::info!(
+                    t,
+                    robot_x = pose.x,
+                    robot_y = pose.y,
+                    emitter_x = x,
+                    emitter_y = y,
+                    plans,
+                    "arrived at the emitter"
+                );
+            } else {
+                // The estimate moved off and the robot followed: later arrivals at debug.
+                tracing::debug!(
+                    t,
+                    arrivals,
+                    robot_x = pose.x,
+                    robot_y = pose.y,
+                    emitter_x = x,
+                    emitter_y = y,
+                    "arrived at the emitter again"
+                );
+            }
+        }
+        self.arrived = arrived;
+        self.requests.push(Request::Velocity {
+            v: cmd.v_mps,
+            w: cmd.omega_rps,
+        });
+    }
+}
+
+impl Drop for EmitterPipeline {
+    /// The run's counters and the last estimate, once, when the daemon (or a replay) ends.
+    fn drop(&mut self) {
+        let c = self.counters();
+        let (x, y) = self.estimate().map_or((f64::NAN, f64::NAN), |p| (p.x, p.y));
+        tracing::info!(
+            steps = c.steps,
+            updates = c.updates,
+            incomplete = c.incomplete,
+            unanswered = c.unanswered,
+            scans = c.scans,
+            arrivals = c.arrivals,
+            rejected_rss = self.homing.rejected_rss(),
+            filter_restarts = self.homing.reinitialisations(),
+            emitter_x = x,
+            emitter_y = y,
+            "emitter pipeline summary"
+        );
+    }
+}
+
+impl Pipeline for EmitterPipeline {
+    fn name(&self) -> &'static str {
+        "emitter"
+    }
+
+    fn handle(&mut self, event: &DeviceEvent) -> Option<PoseEstimate> {
+        match event {
+            DeviceEvent::Odometry { t, .. } => {
+                let mut estimate = self.dead_reckoning.handle(event)?;
+                let pose = self.start.compose(&estimate.pose);
+                estimate.pose = pose;
+                estimate.source = "emitter".into();
+                self.pose = Some(pose);
+                let due = *self.next_control.get_or_insert(*t);
+                if *t >= due {
+                    // Whole periods from the first step, so the cadence does not drift.
+                    let behind = ((*t - due) / self.control_period_s).floor() + 1.0;
+                    self.next_control = Some(due + behind * self.control_period_s);
+                    self.control_step(*t, pose);
+                }
+                Some(estimate)
+            }
+            DeviceEvent::EmitterRss {
+                t, antenna, dbm, ..
+            } => {
+                match dbm {
+                    Some(v) if v.is_finite() => {
+                        if let Some(r) = self.readings.get_mut(slot(*antenna)) {
+                            *r = Some((*t, *v));
+                        }
+                    }
+                    _ => self.counters.unanswered += 1,
+                }
+                None
+            }
+            DeviceEvent::RangeScan { beams, .. } => {
+                let pose = self.pose.unwrap_or(self.start);
+                self.homing.observe_scan(&pose, beams.clone());
+                self.counters.scans += 1;
+                None
+            }
+            DeviceEvent::WheelStall { .. }
+            | DeviceEvent::HfTag { .. }
+            | DeviceEvent::UhfSnapshot { .. }
+            | DeviceEvent::Sweep { .. }
+            | DeviceEvent::Mark { .. }
+            | DeviceEvent::Status { .. } => None,
+        }
+    }
+
+    fn take_requests(&mut self) -> Vec<Request> {
+        std::mem::take(&mut self.requests)
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::panic)]
+mod tests {
+    use super::*;
+    use rfloc_emitter::ScanBeam;
+
+    fn settings() -> EmitterSettings {
+        let text = "pipeline = \"emitter\"\na1_dbm_at_1m = -45.0\nparticles = 200\n";
+        match toml::from_str::<crate::config::EstimatorConfig>(text).unwrap() {
+            crate::config::EstimatorConfig::Emitter(s) => s,
+            other => panic!("{other:?}"),
+        }
+    }
+
+    fn odometry(t: f64, x: f64) -> DeviceEvent {
+        DeviceEvent::Odometry {
+            device: "base".into(),
+            t,
+            pose: Pose2::new(x, 0.0, 0.0),
+            v: 0.0,
+            w: 0.0,
+        }
+    }
+
+    fn rss(t: f64, antenna: AntennaSide, dbm: f64) -> DeviceEvent {
+        DeviceEvent::EmitterRss {
+            device: format!("{antenna:?}"),
+            t,
+            antenna,
+            dbm: Some(dbm),
+        }
+    }
+
+    /// The four readings of an emitter `d` metres straight ahead (free-space A2 = 2, A1 =
+    /// −45 dBm): the front antenna hears it best, the back worst, left and right alike.
+    fn ahead(t: f64, d: f64) -> Vec<DeviceEvent> {
+        let level = -45.0 - 20.0 * d.log10();
+        vec![
+            rss(t, AntennaSide::Front, level + 5.0),
+            rss(t, AntennaSide::Left, level - 2.0),
+            rss(t, AntennaSide::Back, level - 10.0),
+            rss(t, AntennaSide::Right, level - 2.0),
+        ]
+    }
+
+    #[test]
+    fn four_fresh_readings_make_one_update_and_the_robot_heads_for_the_emitter() {
+        let mut p = EmitterPipeline::new(&settings()).unwrap();
+        let mut commands = Vec::new();
+        for k in 0..50 {
+            let t = f64::from(k) * 0.1;
+            if k % 2 == 0 {
+                for e in ahead(t, 4.0) {
+                    assert!(p.handle(&e).is_none());
+                }
+            }
+            let est = p.handle(&odometry(t, 0.0)).unwrap();
+            assert_eq!(est.source, "emitter");
+            commands.extend(p.take_requests());
+        }
+        let c = p.counters();
+        assert_eq!(c.steps, 25, "one step per 0.2 s of odometry");
+        assert_eq!(c.updates, 25, "every step had four fresh readings");
+        let e = p.estimate().unwrap();
+        assert!(e.x > 1.0 && e.y.abs() < 1.5, "emitter ahead: {e:?}");
+        let Some(Request::Velocity { v, .. }) = commands.last() else {
+            panic!("no command: {commands:?}");
+        };
+        assert!(*v > 0.0, "drives towards it: {commands:?}");
+    }
+
+    #[test]
+    fn stale_or_missing_receivers_do_not_update_the_filter() {
+        let mut p = EmitterPipeline::new(&settings()).unwrap();
+        // Three receivers only.
+        for e in ahead(0.0, 3.0).into_iter().take(3) {
+            p.handle(&e);
+        }
+        p.handle(&odometry(0.0, 0.0));
+        // All four, but one a second old.
+        p.handle(&rss(0.1, AntennaSide::Front, -50.0));
+        for e in ahead(1.0, 3.0).into_iter().skip(1) {
+            p.handle(&e);
+        }
+        p.handle(&odometry(1.0, 0.0));
+        p.handle(&DeviceEvent::EmitterRss {
+            device: "front".into(),
+            t: 1.1,
+            antenna: AntennaSide::Front,
+            dbm: None,
+        });
+        let c = p.counters();
+        assert_eq!((c.steps, c.updates, c.incomplete), (2, 0, 2));
+        assert_eq!(c.unanswered, 1);
+        assert!(p.estimate().is_none());
+    }
+
+    #[test]
+    fn the_pose_is_the_start_composed_with_odometry_and_scans_are_counted() {
+        let mut s = settings();
+        s.start = [1.0, 2.0, 90.0];
+        let mut p = EmitterPipeline::new(&s).unwrap();
+        let est = p.handle(&odometry(0.0, 0.5)).unwrap();
+        assert!((est.pose.x - 1.0).abs() < 1e-9 && (est.pose.y - 2.5).abs() < 1e-9);
+        let beams = vec![ScanBeam {
+            angle_rad: 0.0,
+            range_m: 1.0,
+            max_range_m: 8.0,
+        }];
+        p.handle(&DeviceEvent::RangeScan {
+            device: "laser".into(),
+            t: 0.05,
+            beams,
+        });
+        assert_eq!(p.counters().scans, 1);
+    }
+}
