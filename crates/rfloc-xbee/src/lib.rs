@@ -62,5 +62,5 @@ pub use frame::{
     ModemStatus, NodeIdentification, ReceivePacket, RemoteAtCommand, RemoteAtResponse,
     TransmitRequest, TransmitStatus,
 };
-pub use nd::{DeviceType, NdError, NdLayout, NdLayoutHint, Node};
+pub use nd::{rssi_byte_to_dbm, DeviceType, NdError, NdLayout, NdLayoutHint, Node};
 pub use probe::RssiProbe;

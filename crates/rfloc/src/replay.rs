@@ -17,12 +17,13 @@ use rfloc_transport::replay::{ReplayMode, Replayer};
 use rfloc_transport::SharedClock;
 
 use rfloc_xbee::{
-    ApiMode, AtCommandName, Frame as XBeeFrame, FrameDecoder as XBeeFrameDecoder, NdLayoutHint,
-    Node,
+    ApiMode, AtCommandName, AtStatus, Frame as XBeeFrame, FrameDecoder as XBeeFrameDecoder,
+    NdLayoutHint, Node,
 };
 
 use crate::config::{
-    EkfSlamSettings, EstimatorConfig, HfGridSettings, RobotConfig, SnapshotSettings,
+    AntennaSide, DriverConfig, EkfSlamSettings, EstimatorConfig, HfGridSettings, RobotConfig,
+    SnapshotSettings, XbeeRole,
 };
 use crate::devices::{swept_beacons, SweepMark};
 use crate::events::DeviceEvent;
@@ -115,8 +116,27 @@ pub async fn replay_lines(
                 } else {
                     ApiMode::Escaped
                 };
-                let scan = pipeline::scan_config(&estimator);
-                events.extend(replay_xbee_sweeps(&name, cap, mode, &scan));
+                // The robot file says which radios are emitter receivers (and behind which
+                // reflector); the others sweep.
+                let receiver = cfg.and_then(|c| {
+                    c.devices.iter().find_map(|d| match &d.driver {
+                        DriverConfig::Xbee(x)
+                            if d.name == name && x.role == XbeeRole::EmitterReceiver =>
+                        {
+                            x.antenna
+                        }
+                        _ => None,
+                    })
+                });
+                match receiver {
+                    Some(antenna) => {
+                        events.extend(replay_emitter_receiver(&name, cap, mode, antenna));
+                    }
+                    None => {
+                        let scan = pipeline::scan_config(&estimator);
+                        events.extend(replay_xbee_sweeps(&name, cap, mode, &scan));
+                    }
+                }
             }
             other => {
                 tracing::warn!(device = other, file = %path.display(), "no replay driver for this device; skipped")
@@ -407,6 +427,63 @@ fn replay_xbee_sweeps(
             dropped,
             "radio replay skipped records it could not place in a sweep"
         );
+    }
+    out
+}
+
+/// Rebuilds an emitter receiver's polls from its capture: each local `DB` response is one
+/// [`DeviceEvent::EmitterRss`] at the time its bytes were read, and a remote `DB` the emitter
+/// did not answer (status 4) is one reading of `None`, as the device task reports them.
+fn replay_emitter_receiver(
+    name: &str,
+    cap: &Capture,
+    mode: ApiMode,
+    antenna: AntennaSide,
+) -> Vec<DeviceEvent> {
+    let mut rx = XBeeFrameDecoder::new(mode);
+    let mut out = Vec::new();
+    let mut unusable = 0u64;
+    for rec in &cap.records {
+        let RecordKind::Rx(bytes) = &rec.kind else {
+            continue;
+        };
+        rx.push(bytes);
+        while let Some(frame) = rx.next_frame() {
+            let dbm = match frame.map(|f| XBeeFrame::parse(&f)) {
+                Ok(Ok(XBeeFrame::AtResponse(r)))
+                    if r.command == AtCommandName::DB && r.status() == AtStatus::Ok =>
+                {
+                    match r.data.as_slice() {
+                        [0] | [] => None,
+                        [b] => Some(rfloc_xbee::rssi_byte_to_dbm(*b)),
+                        _ => {
+                            unusable += 1;
+                            continue;
+                        }
+                    }
+                }
+                Ok(Ok(XBeeFrame::RemoteAtResponse(r)))
+                    if r.command == AtCommandName::DB && r.status() == AtStatus::TxFailure =>
+                {
+                    None
+                }
+                Ok(Ok(_)) => continue,
+                _ => {
+                    unusable += 1;
+                    continue;
+                }
+            };
+            out.push(DeviceEvent::EmitterRss {
+                device: name.to_string(),
+                t: rec.t(),
+                antenna,
+                dbm,
+            });
+        }
+    }
+    let dropped = rx.stats().dropped_bytes;
+    if unusable > 0 || dropped > 0 {
+        tracing::warn!(unusable, dropped, "receiver replay skipped damaged frames");
     }
     out
 }
