@@ -809,7 +809,8 @@ impl RobotConfig {
         check_devices: bool,
     ) -> Result<(), ConfigError> {
         let err = |key: &str, message: String| {
-            let (line, column) = find_key(text, key.rsplit('.').next().unwrap_or(key));
+            // The whole key: `device[i].…` is looked for from that device's table on.
+            let (line, column) = find_key(text, key);
             ConfigError {
                 file: file.to_string(),
                 line,
@@ -1337,6 +1338,71 @@ pipeline = "hfgrid"
         );
         let cfg = RobotConfig::parse(&both, "uhf.toml").unwrap();
         cfg.check(&both, "uhf.toml", None, false).unwrap();
+    }
+
+    /// The emitter robot of `config/sim-emitter.toml`, checked as a simulation config.
+    fn emitter_robot() -> String {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../config/sim-emitter.toml");
+        std::fs::read_to_string(path).unwrap()
+    }
+
+    #[test]
+    fn emitter_receivers_are_checked_with_their_device_line() {
+        let text = emitter_robot();
+        let cfg = RobotConfig::parse(&text, "em.toml").unwrap();
+        cfg.check(&text, "em.toml", None, false).unwrap();
+        let Some(DriverConfig::Xbee(x)) = cfg.devices.get(3).map(|d| &d.driver) else {
+            panic!("device 3 is not an XBee");
+        };
+        assert_eq!(
+            (x.role, x.antenna, x.emitter_address()),
+            (
+                XbeeRole::EmitterReceiver,
+                Some(AntennaSide::Back),
+                Some(0x0013_A200_41E0_E001)
+            )
+        );
+        // A bad address on the third receiver: the error points at that device's line.
+        let bad = text.replacen(
+            "antenna = \"back\"\nemitter = \"0013A20041E0E001\"",
+            "antenna = \"back\"\nemitter = \"not-hex\"",
+            1,
+        );
+        assert_ne!(bad, text);
+        let cfg = RobotConfig::parse(&bad, "em.toml").unwrap();
+        let e = cfg.check(&bad, "em.toml", None, false).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("device[3].driver.emitter"), "{e}");
+        let line = bad
+            .lines()
+            .position(|l| l.contains("not-hex"))
+            .map(|i| i + 1);
+        assert_eq!(e.line, line, "{e}");
+        // Two receivers behind the front reflector and none behind the left one.
+        let twice = text.replacen("antenna = \"left\"", "antenna = \"front\"", 1);
+        let cfg = RobotConfig::parse(&twice, "em.toml").unwrap();
+        let e = cfg.check(&twice, "em.toml", None, false).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("estimator.pipeline"), "{e}");
+        assert!(e.message.contains("antenna = \"front\""), "{e}");
+        // A receiver without its reflector.
+        let none = text.replacen("antenna = \"right\"\n", "", 1);
+        let cfg = RobotConfig::parse(&none, "em.toml").unwrap();
+        let e = cfg.check(&none, "em.toml", None, false).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("device[4].driver.role"), "{e}");
+        let line = none
+            .lines()
+            .enumerate()
+            .filter(|(_, l)| l.starts_with("role ="))
+            .nth(3)
+            .map(|(i, _)| i + 1);
+        assert_eq!(e.line, line, "the fourth receiver's role line: {e}");
+        // A non-positive control period.
+        let period = text.replace(
+            "obstacle_distance_m = 0.4",
+            "obstacle_distance_m = 0.4\ncontrol_period_s = 0.0",
+        );
+        let cfg = RobotConfig::parse(&period, "em.toml").unwrap();
+        let e = cfg.check(&period, "em.toml", None, false).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("estimator.control_period_s"), "{e}");
     }
 
     #[test]
