@@ -360,6 +360,18 @@ pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
             for request in estimator.take_requests() {
                 route(request, motion.as_ref(), sweeps.as_ref());
             }
+            for target in estimator.take_targets() {
+                match message::target_json(&target, SystemTime::now(), &fmt) {
+                    Ok(line) => {
+                        if (opts.stdout || cfg.pose.stdout) && !print_line(&line) {
+                            opts.stdout = false;
+                            cfg.pose.stdout = false;
+                        }
+                        hub.publish_target(line);
+                    }
+                    Err(e) => tracing::warn!(error = %e, "target not published"),
+                }
+            }
             if let Some(mut est) = estimate {
                 if let Some(sim) = sim.as_mut() {
                     sim.score(&est);

@@ -15,7 +15,7 @@ pub const PROTO_MAJOR: u32 = 1;
 #[must_use]
 pub fn version_json() -> String {
     format!(
-        "{{\"class\":\"VERSION\",\"release\":\"{}\",\"proto_major\":{PROTO_MAJOR},\"proto_minor\":0}}",
+        "{{\"class\":\"VERSION\",\"release\":\"{}\",\"proto_major\":{PROTO_MAJOR},\"proto_minor\":1}}",
         env!("CARGO_PKG_VERSION")
     )
 }
@@ -151,6 +151,47 @@ pub fn pose_json(
     Ok(s)
 }
 
+/// A TARGET line: `{"class":"TARGET","time":…,"stamp":…,"frame_id":…,"id":"emitter","x":…,
+/// "y":…,"cov":[xx,xy,yy],"raw":[x,y],"source":…}` (metres with the pose precision; `raw`
+/// only when the pipeline has an unfiltered position).
+///
+/// # Errors
+/// A non-finite position, covariance or time.
+pub fn target_json(
+    t: &crate::pipeline::TargetEstimate,
+    wall: SystemTime,
+    fmt: &PoseFormat,
+) -> Result<String, NonFinite> {
+    if !(t.x.is_finite() && t.y.is_finite()) {
+        return Err(NonFinite("position"));
+    }
+    if !t.time.is_finite() {
+        return Err(NonFinite("time"));
+    }
+    if t.cov.iter().any(|v| !v.is_finite()) {
+        return Err(NonFinite("covariance"));
+    }
+    let pm = fmt.precision;
+    let mut s = String::with_capacity(256);
+    s.push_str("{\"class\":\"TARGET\"");
+    let _ = write!(s, ",\"time\":{}", json_string(&iso8601(wall)));
+    let _ = write!(s, ",\"stamp\":{:.6}", t.time);
+    let _ = write!(s, ",\"frame_id\":{}", json_string(&fmt.frame_id));
+    let _ = write!(s, ",\"id\":{}", json_string(t.id));
+    let _ = write!(s, ",\"x\":{:.pm$},\"y\":{:.pm$}", t.x, t.y);
+    let _ = write!(
+        s,
+        ",\"cov\":[{:.3e},{:.3e},{:.3e}]",
+        t.cov[0], t.cov[1], t.cov[2]
+    );
+    if let Some((rx, ry)) = t.raw.filter(|(x, y)| x.is_finite() && y.is_finite()) {
+        let _ = write!(s, ",\"raw\":[{rx:.pm$},{ry:.pm$}]");
+    }
+    let _ = write!(s, ",\"source\":{}", json_string(t.source));
+    s.push('}');
+    Ok(s)
+}
+
 /// State of one device link as reported in DEVICE objects.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum DeviceState {
@@ -251,6 +292,39 @@ mod tests {
             pose_json(&e, SystemTime::now(), &fmt()),
             Err(NonFinite("covariance"))
         );
+    }
+
+    #[test]
+    fn target_line_carries_position_covariance_and_raw_fix() {
+        let mut t = crate::pipeline::TargetEstimate {
+            time: 14.8,
+            id: "emitter",
+            x: 3.95123,
+            y: -0.0431,
+            cov: [0.0211, -0.0012, 0.0195],
+            raw: Some((3.881, 0.1702)),
+            source: "emitter",
+        };
+        let wall = UNIX_EPOCH + Duration::from_millis(1_795_255_200_123);
+        let line = target_json(&t, wall, &fmt()).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&line).unwrap();
+        assert_eq!(v["class"], "TARGET");
+        assert_eq!(v["id"], "emitter");
+        assert_eq!(v["time"], "2026-11-21T10:00:00.123Z");
+        assert!(line.contains("\"x\":3.951,\"y\":-0.043,"), "{line}");
+        assert!(line.contains("\"raw\":[3.881,0.170]"), "{line}");
+        let cov: Vec<f64> = v["cov"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| c.as_f64().unwrap())
+            .collect();
+        assert_eq!(cov, vec![0.0211, -0.0012, 0.0195]);
+        t.raw = None;
+        let line = target_json(&t, wall, &fmt()).unwrap();
+        assert!(!line.contains("raw"), "{line}");
+        t.cov[1] = f64::NAN;
+        assert_eq!(target_json(&t, wall, &fmt()), Err(NonFinite("covariance")));
     }
 
     #[test]

@@ -27,7 +27,7 @@ use crate::config::{
 };
 use crate::devices::{swept_beacons, SweepMark};
 use crate::events::DeviceEvent;
-use crate::message::{pose_json, PoseFormat};
+use crate::message::{pose_json, target_json, PoseFormat};
 use crate::pipeline;
 
 /// Replays every capture in `dir` through the pipeline and prints POSE lines.
@@ -169,6 +169,13 @@ pub async fn replay_lines(
             match pose_json(&est, wall, &fmt) {
                 Ok(l) => lines.push(l),
                 Err(e) => tracing::warn!(error = %e, "estimate not printed"),
+            }
+        }
+        for t in p.take_targets() {
+            let wall = epoch + Duration::from_secs_f64(t.time.max(0.0));
+            match target_json(&t, wall, &fmt) {
+                Ok(l) => lines.push(l),
+                Err(e) => tracing::warn!(error = %e, "target not printed"),
             }
         }
     }

@@ -27,6 +27,7 @@ pub struct PoseHub {
 #[derive(Debug, Default)]
 struct Latest {
     pose: Option<Arc<str>>,
+    target: Option<Arc<str>>,
     devices: BTreeMap<String, Arc<str>>,
     dropped_clients: u64,
 }
@@ -66,6 +67,15 @@ impl PoseHub {
         let _ = self.lines.send(line);
     }
 
+    /// Publishes a TARGET line.
+    pub fn publish_target(&self, line: String) {
+        let line: Arc<str> = line.into();
+        if let Ok(mut l) = self.latest.lock() {
+            l.target = Some(Arc::clone(&line));
+        }
+        let _ = self.lines.send(line);
+    }
+
     /// Publishes a DEVICE line for `device`.
     pub fn publish_device(&self, device: &str, line: String) {
         let line: Arc<str> = line.into();
@@ -93,6 +103,7 @@ impl PoseHub {
         if let Ok(l) = self.latest.lock() {
             out.extend(l.devices.values().cloned());
             out.extend(l.pose.clone());
+            out.extend(l.target.clone());
         }
         out
     }

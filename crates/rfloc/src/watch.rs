@@ -71,6 +71,15 @@ pub fn summarise(line: &str) -> String {
             v["mode"].as_str().unwrap_or("?"),
             v["source"].as_str().unwrap_or("?"),
         ),
+        Some("TARGET") => format!(
+            "TARGET {} {} x={:.3} y={:.3} σxy={:.3} m src={}",
+            v["time"].as_str().unwrap_or("?"),
+            v["id"].as_str().unwrap_or("?"),
+            v["x"].as_f64().unwrap_or(f64::NAN),
+            v["y"].as_f64().unwrap_or(f64::NAN),
+            (v["cov"][0].as_f64().unwrap_or(0.0) + v["cov"][2].as_f64().unwrap_or(0.0)).sqrt(),
+            v["source"].as_str().unwrap_or("?"),
+        ),
         Some("DEVICE") => format!(
             "DEVICE {} {} ({}) {}",
             v["name"].as_str().unwrap_or("?"),

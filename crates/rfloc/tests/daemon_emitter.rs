@@ -5,7 +5,8 @@
 //! pipeline drives the base. Once the published pose has stood still for 3 s (simulated) the
 //! daemon is stopped with SIGTERM; the robot's true pose, logged on exit, must be within the
 //! seed's 50 cm of the emitter, and the log must show the arrival and the filter's updates.
-//! Replaying the captures must give back the published poses and an emitter estimate.
+//! The stream carries the emitter estimates as TARGET lines. Replaying the captures must give
+//! back the published poses and TARGET lines near the emitter.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
@@ -62,6 +63,7 @@ async fn emitter_daemon_homes_on_the_emitter_over_four_xbee_receivers() {
     let mut lines = daemon.pose_lines(port).await;
     let mut live = std::collections::BTreeMap::new();
     let mut parked: Option<(f64, f64, f64)> = None;
+    let (mut targets, mut last_target) = (0usize, None);
     let deadline = tokio::time::Instant::now() + Duration::from_secs(120);
     loop {
         let line = match tokio::time::timeout_at(deadline, lines.next_line()).await {
@@ -76,6 +78,15 @@ async fn emitter_daemon_homes_on_the_emitter_over_four_xbee_receivers() {
             }
         };
         let v: serde_json::Value = serde_json::from_str(&line).unwrap();
+        if v["class"] == "TARGET" {
+            assert_eq!(
+                (&v["id"], &v["source"]),
+                (&"emitter".into(), &"emitter".into())
+            );
+            last_target = Some((v["x"].as_f64().unwrap(), v["y"].as_f64().unwrap()));
+            targets += 1;
+            continue;
+        }
         if v["class"] != "POSE" {
             continue;
         }
@@ -126,6 +137,13 @@ async fn emitter_daemon_homes_on_the_emitter_over_four_xbee_receivers() {
         "emitter estimated at ({ex:.2}, {ey:.2})"
     );
 
+    // The stream carried the filter's estimates as TARGET lines.
+    let (lx, ly) = last_target.expect("no TARGET line on the stream");
+    assert!(
+        targets > 50 && (lx - EMITTER.0).hypot(ly - EMITTER.1) < 0.75,
+        "{targets} TARGET lines, the last at ({lx:.2}, {ly:.2})"
+    );
+
     // Every receiver's link was recorded with its polls.
     for side in ["front", "left", "back", "right"] {
         let cap = std::fs::read_to_string(dir.path().join(format!("cap/rx-{side}.cap"))).unwrap();
@@ -144,13 +162,18 @@ async fn emitter_daemon_homes_on_the_emitter_over_four_xbee_receivers() {
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
-    let replayed: std::collections::BTreeMap<i64, (f64, f64, f64)> = String::from_utf8(out.stdout)
+    let objects: Vec<serde_json::Value> = String::from_utf8(out.stdout)
         .unwrap()
         .lines()
         .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
-        .filter(|v| v["class"] == "POSE")
-        .map(|v| pose_of(&v))
         .collect();
+    let replayed: std::collections::BTreeMap<i64, (f64, f64, f64)> = objects
+        .iter()
+        .filter(|v| v["class"] == "POSE")
+        .map(pose_of)
+        .collect();
+    let replayed_targets: Vec<&serde_json::Value> =
+        objects.iter().filter(|v| v["class"] == "TARGET").collect();
     let common_keys: Vec<_> = live.keys().filter(|k| replayed.contains_key(k)).collect();
     assert!(
         common_keys.len() * 10 >= live.len() * 9,
@@ -162,10 +185,9 @@ async fn emitter_daemon_homes_on_the_emitter_over_four_xbee_receivers() {
         assert_eq!(live[k], replayed[k], "pose at stamp {k} ms");
     }
     let replay_updates = common::logged(&stderr, "emitter pipeline summary", "updates");
-    let (rx, ry) = (
-        common::logged(&stderr, "emitter pipeline summary", "emitter_x"),
-        common::logged(&stderr, "emitter pipeline summary", "emitter_y"),
-    );
+    assert_eq!(replayed_targets.len() as f64, replay_updates);
+    let last = replayed_targets.last().expect("replay printed no TARGET");
+    let (rx, ry) = (last["x"].as_f64().unwrap(), last["y"].as_f64().unwrap());
     eprintln!(
         "arrived at {arrived_at:.1} s; true end {reach:.3} m from the emitter; estimate ({ex:.3}, {ey:.3}) live, ({rx:.3}, {ry:.3}) replayed; {updates} / {replay_updates} filter updates"
     );

@@ -20,7 +20,7 @@ use rfloc_pose::{Pose2, PoseEstimate};
 
 use crate::config::{AntennaSide, EmitterSettings};
 use crate::events::DeviceEvent;
-use crate::pipeline::{OdometryPipeline, Pipeline, Request};
+use crate::pipeline::{OdometryPipeline, Pipeline, Request, TargetEstimate};
 
 pub mod homing;
 
@@ -95,6 +95,7 @@ pub struct EmitterPipeline {
     arrived: bool,
     estimate: Option<Point2>,
     requests: Vec<Request>,
+    targets: Vec<TargetEstimate>,
     counters: EmitterCounters,
 }
 
@@ -129,6 +130,7 @@ impl EmitterPipeline {
             arrived: false,
             estimate: None,
             requests: Vec::new(),
+            targets: Vec::new(),
             counters: EmitterCounters::default(),
         })
     }
@@ -167,6 +169,16 @@ impl EmitterPipeline {
                 if let Some(est) = self.homing.observe_rss(t, &pose, &rss) {
                     self.counters.updates += 1;
                     self.estimate = Some(est.mean);
+                    let c = est.covariance;
+                    self.targets.push(TargetEstimate {
+                        time: t,
+                        id: "emitter",
+                        x: est.mean.x,
+                        y: est.mean.y,
+                        cov: [c[(0, 0)], c[(0, 1)], c[(1, 1)]],
+                        raw: Some((est.raw.x, est.raw.y)),
+                        source: "emitter",
+                    });
                     tracing::debug!(
                         x = est.mean.x,
                         y = est.mean.y,
@@ -261,9 +273,11 @@ impl Pipeline for EmitterPipeline {
                 estimate.source = "emitter".into();
                 self.pose = Some(pose);
                 let due = *self.next_control.get_or_insert(*t);
-                if *t >= due {
+                // A microsecond of slack: odometry stamped on a 0.1 s grid must not miss a
+                // 0.2 s step to rounding (0.1·48 vs 0.2·24).
+                if *t + 1e-6 >= due {
                     // Whole periods from the first step, so the cadence does not drift.
-                    let behind = ((*t - due) / self.control_period_s).floor() + 1.0;
+                    let behind = ((*t + 1e-6 - due) / self.control_period_s).floor() + 1.0;
                     self.next_control = Some(due + behind * self.control_period_s);
                     self.control_step(*t, pose);
                 }
@@ -299,6 +313,10 @@ impl Pipeline for EmitterPipeline {
 
     fn take_requests(&mut self) -> Vec<Request> {
         std::mem::take(&mut self.requests)
+    }
+
+    fn take_targets(&mut self) -> Vec<TargetEstimate> {
+        std::mem::take(&mut self.targets)
     }
 }
 
@@ -362,7 +380,19 @@ mod tests {
             assert_eq!(est.source, "emitter");
             commands.extend(p.take_requests());
         }
+        let targets = p.take_targets();
         let c = p.counters();
+        assert_eq!(
+            targets.len() as u64,
+            c.updates,
+            "one TARGET per filter update"
+        );
+        let last = targets.last().unwrap();
+        assert_eq!((last.id, last.source), ("emitter", "emitter"));
+        assert!(
+            (last.time - 4.8).abs() < 1e-9 && last.cov[0] > 0.0 && last.raw.is_some(),
+            "{last:?}"
+        );
         assert_eq!(c.steps, 25, "one step per 0.2 s of odometry");
         assert_eq!(c.updates, 25, "every step had four fresh readings");
         let e = p.estimate().unwrap();

@@ -29,6 +29,29 @@ pub trait Pipeline: Send {
     fn take_requests(&mut self) -> Vec<Request> {
         Vec::new()
     }
+    /// Estimates of things other than the robot (the emitter a robot homes on), oldest first
+    /// (drained by the daemon after every event, published as TARGET lines).
+    fn take_targets(&mut self) -> Vec<TargetEstimate> {
+        Vec::new()
+    }
+}
+
+/// A position estimate of something the robot tracks, in the map frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TargetEstimate {
+    /// Time of the measurement it includes last (driver clock), seconds.
+    pub time: f64,
+    /// What it is (`emitter`).
+    pub id: &'static str,
+    /// Position, metres.
+    pub x: f64,
+    pub y: f64,
+    /// Position covariance (xx, xy, yy), m².
+    pub cov: [f64; 3],
+    /// The unfiltered position of the same update, when the pipeline has one.
+    pub raw: Option<(f64, f64)>,
+    /// Pipeline name.
+    pub source: &'static str,
 }
 
 /// A pipeline's request to the devices; the daemon routes it to the device task that can act.

@@ -528,7 +528,12 @@ fn start_emitter_receivers(
     runtime: &mut SimRuntime,
 ) -> anyhow::Result<()> {
     let world = Arc::new(scenario.world.clone());
-    let sensors = Arc::new(Mutex::new(rfloc_sim::SensorSuite::for_trial(scenario, 0)));
+    // The simulation's seed picks the scenario trial whose sensor streams (shadowing, fading,
+    // laser noise) the receivers and the laser draw from.
+    let trial = usize::try_from(runtime.config.seed).unwrap_or(0);
+    let sensors = Arc::new(Mutex::new(rfloc_sim::SensorSuite::for_trial(
+        scenario, trial,
+    )));
     runtime.sensors = Some((Arc::clone(&sensors), Arc::clone(&world)));
     for device in cfg.devices.iter_mut() {
         let DriverConfig::Xbee(x) = &device.driver else {
