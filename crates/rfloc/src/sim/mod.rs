@@ -95,6 +95,10 @@ pub struct SimRuntime {
     start: Pose2,
     /// The emitter scenario's sensor models and world (receivers, laser), when it has one.
     sensors: Option<(Arc<Mutex<rfloc_sim::SensorSuite>>, Arc<rfloc_sim::World>)>,
+    /// The emitter scenario's goal (position, tolerance) and when the true pose first came
+    /// within it: the referee's time, not the robot's belief.
+    goal: Option<(rfloc_sim::Point, f64)>,
+    goal_reached: Option<f64>,
 }
 
 /// Published poses scored against the emulated robot's true pose.
@@ -157,6 +161,19 @@ impl SimRuntime {
         }
         let Some(base) = &self.base else { return };
         let state = base.state();
+        if let (Some((goal, tolerance)), None) = (self.goal, self.goal_reached) {
+            let here = rfloc_sim::Point::new(state.truth.x, state.truth.y);
+            if here.distance(&goal) <= tolerance {
+                self.goal_reached = Some(state.sim_time);
+                tracing::info!(
+                    t = state.sim_time,
+                    x = state.truth.x,
+                    y = state.truth.y,
+                    tolerance_m = tolerance,
+                    "simulation: scenario goal reached (true pose)"
+                );
+            }
+        }
         let lag = (state.sim_time - estimate.time).clamp(0.0, 1.0);
         let back = Pose2::new(-state.v * lag, 0.0, -state.w * lag);
         let truth = state.truth.compose(&back);
@@ -245,6 +262,8 @@ pub async fn start(
         dead_reckoning: TruthScore::default(),
         start: Pose2::new(sim.start[0], sim.start[1], sim.start[2].to_radians()),
         sensors: None,
+        goal: None,
+        goal_reached: None,
     };
     let start = Pose2::new(sim.start[0], sim.start[1], sim.start[2].to_radians());
     let scenario = match &sim.scenario {
@@ -357,6 +376,10 @@ pub async fn start(
             .filter(|s| s.world.emitter.is_some())
             .context("emulated emitter receivers need [simulation] scenario with an emitter")?;
         start_emitter_receivers(cfg, scenario, start, &mut runtime)?;
+        let trial = usize::try_from(sim.seed).unwrap_or(0);
+        runtime.goal = scenario
+            .goal(trial)
+            .zip(scenario.spec.goal.map(|g| g.tolerance_m));
     }
     let has_xbee = cfg
         .devices
