@@ -145,6 +145,9 @@ pub struct EmulatorState {
     pub watchdog_tripped: bool,
     /// The motion hook clipped the last step (wheels stalled).
     pub stalled: bool,
+    /// The clipped step pushed forward (front bumper ring in contact) / backward (rear ring).
+    pub bumped_front: bool,
+    pub bumped_rear: bool,
     /// Times the watchdog stopped the robot.
     pub watchdog_trips: u64,
     /// Motor SIPs sent.
@@ -794,6 +797,10 @@ impl RobotEmulator {
         let clipped = accepted.distance(&proposed) > 1e-9
             || wrap_angle(accepted.theta - proposed.theta).abs() > 1e-9;
         self.st.stalled = clipped;
+        // Which ring touched: the direction the blocked step tried to go, in the body frame.
+        let pushed = proposed.relative_to(&current).x;
+        self.st.bumped_front = clipped && pushed > 0.0;
+        self.st.bumped_rear = clipped && pushed < 0.0;
         self.st.truth = accepted;
         // Encoders: nominal wheel motion, or what the robot actually did when blocked.
         let odo_delta = if clipped {
@@ -831,7 +838,11 @@ impl RobotEmulator {
                 self.sonar_next = (self.sonar_next + 1) % 16;
             }
         }
-        let stall = if self.st.stalled { 0x0101 } else { 0 };
+        // Wheel stalls in bits 0 and 8; a P3-DX's five bumper segments in bits 1–5 (rear) and
+        // 9–13 (front), all pressed when the body meets a wall.
+        let stall = if self.st.stalled { 0x0101 } else { 0 }
+            | if self.st.bumped_front { 0x3E00 } else { 0 }
+            | if self.st.bumped_rear { 0x003E } else { 0 };
         MotorSip {
             moving: self.v_mm.abs() > 0.5 || self.w_deg.abs() > 0.05,
             x_raw: units(self.st.odometry.x),
@@ -997,6 +1008,35 @@ mod tests {
         assert!(e.st.stalled);
         assert!((e.st.odometry.x - e.st.truth.x).abs() < 1e-9);
         assert!(e.motor_sip().stall_bumpers.left_stall());
+        let sb = e.motor_sip().stall_bumpers;
+        assert_eq!(
+            (sb.front_bumpers(), sb.rear_bumpers()),
+            (0x1F, 0),
+            "front ring"
+        );
+        // Backing off frees the bumper.
+        e.handle_frame(&Command::Vel(-200).to_frame(&Default::default()).unwrap());
+        for _ in 0..20 {
+            e.step_period();
+        }
+        let sb = e.motor_sip().stall_bumpers;
+        assert_eq!(
+            (sb.front_bumpers(), sb.rear_bumpers(), sb.left_stall()),
+            (0, 0, false)
+        );
+    }
+
+    #[test]
+    fn backing_into_a_wall_presses_the_rear_ring() {
+        let wall: MotionHook = Box::new(|cur, prop| if prop.x < -0.05 { *cur } else { *prop });
+        let mut e = opened(EmulatorConfig::default()).with_motion_hook(wall);
+        e.handle_frame(&Command::Vel(-200).to_frame(&Default::default()).unwrap());
+        for _ in 0..20 {
+            e.step_period();
+        }
+        let sb = e.motor_sip().stall_bumpers;
+        assert_eq!(sb.0, 0x013F, "both wheel stalls and rear segments 1–5");
+        assert_eq!((sb.front_bumpers(), sb.rear_bumpers()), (0, 0x1F));
     }
 
     #[test]

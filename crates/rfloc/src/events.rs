@@ -23,6 +23,14 @@ pub enum DeviceEvent {
     /// The base's SIPs began to report a stalled wheel (its motors push against something);
     /// sent once per stall, when the first SIP with a stall bit follows one without.
     WheelStall { device: String, t: f64 },
+    /// The base's bumper rings changed: which are pressed now (any segment of the front or the
+    /// rear ring, from the SIPs' bumper bits). Sent on every change.
+    Bumpers {
+        device: String,
+        t: f64,
+        front: bool,
+        rear: bool,
+    },
     /// An HF floor tag in the antenna field (`SCAN:+UID`), with the reader's RSSI numbers.
     HfTag {
         device: String,
@@ -93,6 +101,7 @@ impl DeviceEvent {
         match self {
             DeviceEvent::Odometry { device, .. }
             | DeviceEvent::WheelStall { device, .. }
+            | DeviceEvent::Bumpers { device, .. }
             | DeviceEvent::HfTag { device, .. }
             | DeviceEvent::UhfSnapshot { device, .. }
             | DeviceEvent::Sweep { device, .. }
@@ -129,6 +138,7 @@ impl DeviceEvent {
         match self {
             DeviceEvent::Odometry { t, .. }
             | DeviceEvent::WheelStall { t, .. }
+            | DeviceEvent::Bumpers { t, .. }
             | DeviceEvent::HfTag { t, .. }
             | DeviceEvent::UhfSnapshot { t, .. }
             | DeviceEvent::Sweep { t, .. }

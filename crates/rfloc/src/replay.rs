@@ -282,6 +282,7 @@ async fn replay_aria(name: &str, cap: Capture) -> anyhow::Result<Vec<DeviceEvent
     let mut decoder = FrameDecoder::new();
     let mut tracker: Option<OdometryTracker> = None;
     let mut stalled = false;
+    let mut bumpers = (false, false);
     let mut out = Vec::new();
     let mut skipped = 0u64;
     for rec in &cap.records {
@@ -321,6 +322,19 @@ async fn replay_aria(name: &str, cap: Capture) -> anyhow::Result<Vec<DeviceEvent
                         });
                     }
                     stalled = stalled_now;
+                    let bumpers_now = (
+                        sip.stall_bumpers.front_bumpers() != 0,
+                        sip.stall_bumpers.rear_bumpers() != 0,
+                    );
+                    if bumpers_now != bumpers {
+                        bumpers = bumpers_now;
+                        out.push(DeviceEvent::Bumpers {
+                            device: name.to_string(),
+                            t: rec.t(),
+                            front: bumpers.0,
+                            rear: bumpers.1,
+                        });
+                    }
                 }
                 Ok(_) => {}
                 Err(_) => skipped += 1,

@@ -55,6 +55,7 @@ pub(super) async fn run(
         .await;
         let mut odom = client.odometry();
         let mut stalled = false;
+        let mut bumpers = (false, false);
         let mut link = client.link_state();
         loop {
             tokio::select! {
@@ -85,6 +86,14 @@ pub(super) async fn run(
                         }
                     }
                     stalled = stalled_now;
+                    let bumpers_now = (o.front_bumpers != 0, o.rear_bumpers != 0);
+                    if bumpers_now != bumpers {
+                        bumpers = bumpers_now;
+                        let ev = DeviceEvent::Bumpers { device: ctx.device.name.clone(), t: o.time, front: bumpers.0, rear: bumpers.1 };
+                        if ctx.events.send(ev).await.is_err() {
+                            return;
+                        }
+                    }
                 }
                 changed = link.changed() => {
                     if changed.is_err() {

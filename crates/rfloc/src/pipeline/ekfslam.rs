@@ -369,6 +369,7 @@ impl Pipeline for EkfSlamPipeline {
             | DeviceEvent::UhfSnapshot { .. }
             | DeviceEvent::Mark { .. }
             | DeviceEvent::WheelStall { .. }
+            | DeviceEvent::Bumpers { .. }
             | DeviceEvent::EmitterRss { .. }
             | DeviceEvent::RangeScan { .. }
             | DeviceEvent::Status { .. } => None,

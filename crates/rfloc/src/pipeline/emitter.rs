@@ -8,9 +8,8 @@
 //!   reading is used once) and feeds it to the particle filter at the step's pose; then the
 //!   navigator, given the latest scan and the filtered estimate, makes a velocity request.
 //! - **Scans** go into the occupancy grid (full system) as they arrive, at the latest pose.
-//! - **Bumpers.** The emulated base reports no bumper contacts and the SIPs' bumper bits are
-//!   not yet forwarded as events, so the navigator's bumper reflex never fires here; the laser
-//!   keeps the robot off walls.
+//! - **Bumpers** come from the base's SIPs (`DeviceEvent::Bumpers`, on every change); the
+//!   navigator's reflex backs away from a front contact and pulls away from a rear one.
 
 use rfloc_emitter::{
     AntennaRss, Bumpers, DifferentialRssConfig, NavigatorConfig, NavigatorState,
@@ -76,6 +75,8 @@ pub struct EmitterCounters {
     pub scans: u64,
     /// Times the navigator came to a stop at the emitter.
     pub arrivals: u64,
+    /// Bumper contacts reported by the base.
+    pub bumps: u64,
 }
 
 /// The emitter-homing pipeline.
@@ -96,6 +97,8 @@ pub struct EmitterPipeline {
     estimate: Option<Point2>,
     requests: Vec<Request>,
     targets: Vec<TargetEstimate>,
+    /// The bumper rings as the base last reported them.
+    bumpers: Bumpers,
     counters: EmitterCounters,
 }
 
@@ -131,6 +134,7 @@ impl EmitterPipeline {
             estimate: None,
             requests: Vec::new(),
             targets: Vec::new(),
+            bumpers: Bumpers::default(),
             counters: EmitterCounters::default(),
         })
     }
@@ -200,7 +204,7 @@ impl EmitterPipeline {
             }
             None => self.counters.incomplete += 1,
         }
-        let cmd = self.homing.command(t, pose, Bumpers::default());
+        let cmd = self.homing.command(t, pose, self.bumpers);
         let arrived = cmd.state == NavigatorState::Arrived;
         if arrived && !self.arrived {
             self.counters.arrivals += 1;
@@ -250,6 +254,7 @@ impl Drop for EmitterPipeline {
             unanswered = c.unanswered,
             scans = c.scans,
             arrivals = c.arrivals,
+            bumps = c.bumps,
             rejected_rss = self.homing.rejected_rss(),
             filter_restarts = self.homing.reinitialisations(),
             emitter_x = x,
@@ -300,6 +305,17 @@ impl Pipeline for EmitterPipeline {
                 let pose = self.pose.unwrap_or(self.start);
                 self.homing.observe_scan(&pose, beams.clone());
                 self.counters.scans += 1;
+                None
+            }
+            DeviceEvent::Bumpers { front, rear, .. } => {
+                self.bumpers = Bumpers {
+                    front: *front,
+                    rear: *rear,
+                };
+                if *front || *rear {
+                    self.counters.bumps += 1;
+                    tracing::info!(front, rear, bumps = self.counters.bumps, "bumper contact");
+                }
                 None
             }
             DeviceEvent::WheelStall { .. }
@@ -427,6 +443,34 @@ mod tests {
         assert_eq!((c.steps, c.updates, c.incomplete), (2, 0, 2));
         assert_eq!(c.unanswered, 1);
         assert!(p.estimate().is_none());
+    }
+
+    #[test]
+    fn a_front_bumper_contact_backs_the_robot_away() {
+        let mut p = EmitterPipeline::new(&settings()).unwrap();
+        for e in ahead(0.0, 3.0) {
+            p.handle(&e);
+        }
+        p.handle(&odometry(0.0, 0.0));
+        let Some(Request::Velocity { v, .. }) = p.take_requests().pop() else {
+            panic!("no command");
+        };
+        assert!(v >= 0.0, "{v}");
+        let bump = |front| DeviceEvent::Bumpers {
+            device: "base".into(),
+            t: 0.1,
+            front,
+            rear: false,
+        };
+        p.handle(&bump(true));
+        p.handle(&odometry(0.2, 0.0));
+        let Some(Request::Velocity { v, .. }) = p.take_requests().pop() else {
+            panic!("no command");
+        };
+        assert!(v < 0.0, "reverses off the contact: {v}");
+        assert_eq!(p.counters().bumps, 1);
+        p.handle(&bump(false));
+        assert_eq!(p.counters().bumps, 1, "a release is not a contact");
     }
 
     #[test]

@@ -265,6 +265,7 @@ impl HfGridPipeline {
             }
             DeviceEvent::Status { .. }
             | DeviceEvent::WheelStall { .. }
+            | DeviceEvent::Bumpers { .. }
             | DeviceEvent::EmitterRss { .. }
             | DeviceEvent::RangeScan { .. }
             | DeviceEvent::UhfSnapshot { .. }
@@ -315,6 +316,7 @@ impl Pipeline for HfGridPipeline {
                 DeviceEvent::Mark { .. }
                 | DeviceEvent::Status { .. }
                 | DeviceEvent::WheelStall { .. }
+                | DeviceEvent::Bumpers { .. }
                 | DeviceEvent::EmitterRss { .. }
                 | DeviceEvent::RangeScan { .. }
                 | DeviceEvent::UhfSnapshot { .. }
