@@ -2,7 +2,7 @@
 //! emulated Pioneer and an emulated XBee coordinator on real pseudo-terminals, its XBee task
 //! sweeps a simulated antenna stepper with one `ND` round per stop, and the EKF-SLAM pipeline
 //! drives the base through the seed's four waypoints, stopping to sweep. Once the published pose
-//! has stood still near the last waypoint for 3 s (pose stamps are simulated seconds) the daemon
+//! has stood still near the last waypoint for 8 s (pose stamps are simulated seconds) the daemon
 //! is stopped with SIGTERM; the last pose must be near the robot's true pose, which the daemon
 //! logs on exit, and the log must show the four beacons mapped and the last waypoint reached.
 //! Replaying the run's captures must then reproduce the published poses to their printed digit.
@@ -87,9 +87,11 @@ async fn ekfslam_daemon_maps_beacons_and_drives_the_waypoints() {
         live.insert(stamp_key(&v), (x, y, v["yaw"].as_f64().unwrap()));
         match parked {
             Some((t0, x0, y0)) if (x - x0).hypot(y - y0) < 0.005 => {
-                // Inside the switching distance (0.3 m) the controller is done at once, so a
-                // pose standing there is parked, not sweeping on the way.
-                if t - t0 >= 3.0 && (x - 7.0).hypot(y - 2.0) < 0.29 {
+                // The controller is done once the estimate is inside the switching distance
+                // (0.3 m), so the robot parks just inside it (one run stopped at 0.298 m). A
+                // sweep on the way stands still for about 3.5 s (one sweep every 6.5 s of
+                // simulated time, 3 s of it driving), so 8 s without moving is parked.
+                if t - t0 >= 8.0 && (x - 7.0).hypot(y - 2.0) < 0.6 {
                     break v;
                 }
             }

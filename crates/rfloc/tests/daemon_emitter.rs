@@ -97,7 +97,11 @@ async fn emitter_daemon_homes_on_the_emitter_over_four_xbee_receivers() {
         let t = v["stamp"].as_f64().unwrap();
         match parked {
             Some((t0, x0, y0)) if (x - x0).hypot(y - y0) < 0.02 => {
-                if t - t0 >= 3.0 && (x - EMITTER.0).hypot(y - EMITTER.1) < 1.0 {
+                // The published pose is odometry, which matches the truth to a millimetre
+                // here (no slip), so standing within 0.45 m means the referee saw the 50 cm
+                // circle. The robot may also stand outside it for a while, 0.3 m from an
+                // estimate that is off; the loop then waits for it to move on.
+                if t - t0 >= 3.0 && (x - EMITTER.0).hypot(y - EMITTER.1) < 0.45 {
                     break;
                 }
             }
