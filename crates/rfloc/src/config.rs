@@ -50,7 +50,7 @@ pub struct DeviceConfig {
     /// attaches an emulator.
     pub link: Option<LinkConfig>,
     /// Seconds without data before the device counts as stale and poses degrade. Default 3 s;
-    /// 60 s for an XBee radio, which speaks only when the pipeline asks for a sweep.
+    /// 60 s for a sweeping XBee radio, which speaks only when the pipeline asks for a sweep.
     pub stale_after_s: Option<f64>,
     pub driver: DriverConfig,
 }
@@ -59,8 +59,8 @@ impl DeviceConfig {
     /// [`DeviceConfig::stale_after_s`] with its per-driver default.
     #[must_use]
     pub fn stale_after(&self) -> f64 {
-        self.stale_after_s.unwrap_or(match self.driver {
-            DriverConfig::Xbee(_) => 60.0,
+        self.stale_after_s.unwrap_or(match &self.driver {
+            DriverConfig::Xbee(x) if x.role == XbeeRole::Sweep => 60.0,
             _ => 3.0,
         })
     }

@@ -7,8 +7,8 @@ use rfloc_transport::Transport;
 use tokio::sync::mpsc;
 
 use crate::config::AriaSettings;
-use crate::daemon::{backoff, DeviceContext};
-use crate::devices::pause;
+use crate::daemon::DeviceContext;
+use crate::devices::retry_later;
 use crate::events::DeviceEvent;
 use crate::message::DeviceState;
 
@@ -38,12 +38,9 @@ pub(super) async fn run(
         let client = match client {
             Ok(c) => c,
             Err(e) => {
-                ctx.status(DeviceState::Reconnecting, format!("{e}")).await;
-                tracing::warn!(error = %e, attempt, "pioneer connect failed");
-                if !pause(&ctx, backoff(attempt)).await {
+                if !retry_later(&ctx, &mut attempt, format!("pioneer connect: {e}")).await {
                     return;
                 }
-                attempt += 1;
                 continue;
             }
         };
@@ -114,10 +111,8 @@ pub(super) async fn run(
                 }
             }
         }
-        ctx.status(DeviceState::Reconnecting, "client closed").await;
-        if !pause(&ctx, backoff(attempt)).await {
+        if !retry_later(&ctx, &mut attempt, "client closed").await {
             return;
         }
-        attempt += 1;
     }
 }

@@ -5,8 +5,8 @@ use std::time::Duration;
 use rfloc_kts::{KtsClient, KtsConfig};
 
 use crate::config::KtsSettings;
-use crate::daemon::{backoff, DeviceContext};
-use crate::devices::pause;
+use crate::daemon::DeviceContext;
+use crate::devices::retry_later;
 use crate::events::DeviceEvent;
 use crate::message::DeviceState;
 
@@ -17,12 +17,9 @@ pub(super) async fn run(ctx: DeviceContext, settings: KtsSettings) {
         let io = match ctx.open_link().await {
             Ok(io) => io,
             Err(e) => {
-                ctx.status(DeviceState::Reconnecting, format!("{e:#}"))
-                    .await;
-                if !pause(&ctx, backoff(attempt)).await {
+                if !retry_later(&ctx, &mut attempt, format!("{e:#}")).await {
                     return;
                 }
-                attempt += 1;
                 continue;
             }
         };
@@ -38,13 +35,9 @@ pub(super) async fn run(ctx: DeviceContext, settings: KtsSettings) {
             return;
         };
         if let Err(e) = client.start_scan().await {
-            tracing::warn!(error = %e, "start scan failed");
-            ctx.status(DeviceState::Reconnecting, format!("start scan: {e}"))
-                .await;
-            if !pause(&ctx, backoff(attempt)).await {
+            if !retry_later(&ctx, &mut attempt, format!("start scan: {e}")).await {
                 return;
             }
-            attempt += 1;
             continue;
         }
         attempt = 0;
@@ -68,10 +61,8 @@ pub(super) async fn run(ctx: DeviceContext, settings: KtsSettings) {
         }
         let stats = client.stats();
         tracing::warn!(?stats, "HF reader link closed; reconnecting");
-        ctx.status(DeviceState::Reconnecting, "link closed").await;
-        if !pause(&ctx, backoff(attempt)).await {
+        if !retry_later(&ctx, &mut attempt, "link closed").await {
             return;
         }
-        attempt += 1;
     }
 }

@@ -88,6 +88,21 @@ pub fn scaled_base_config(
     .scaled(time_scale)
 }
 
+/// After a failed connection step: reports `Reconnecting` with `detail` (and logs it), waits the
+/// back-off of `attempt` and counts the attempt. False when the daemon stops meanwhile.
+pub(crate) async fn retry_later(
+    ctx: &DeviceContext,
+    attempt: &mut u32,
+    detail: impl Into<String>,
+) -> bool {
+    let detail = detail.into();
+    tracing::warn!(attempt = *attempt, detail = %detail, "device not ready; retrying after back-off");
+    ctx.status(DeviceState::Reconnecting, detail).await;
+    let go_on = pause(ctx, crate::daemon::backoff(*attempt)).await;
+    *attempt += 1;
+    go_on
+}
+
 /// Waits `d` or until the daemon stops; false when stopping.
 pub(crate) async fn pause(ctx: &DeviceContext, d: Duration) -> bool {
     tokio::select! {

@@ -22,8 +22,8 @@ use tokio::io::{AsyncRead, AsyncWrite};
 use tokio::sync::mpsc;
 
 use crate::config::{StepperSettings, XbeeSettings};
-use crate::daemon::{backoff, DeviceContext};
-use crate::devices::pause;
+use crate::daemon::DeviceContext;
+use crate::devices::retry_later;
 use crate::events::{DeviceEvent, SweptBeacon};
 use crate::message::DeviceState;
 
@@ -213,13 +213,9 @@ pub(super) async fn run(
             match open_antenna(&mut source) {
                 Ok(a) => rotator = a,
                 Err(e) => {
-                    ctx.status(DeviceState::Reconnecting, format!("antenna: {e}"))
-                        .await;
-                    tracing::warn!(error = %e, attempt, "antenna stepper not available");
-                    if !pause(&ctx, backoff(attempt)).await {
+                    if !retry_later(&ctx, &mut attempt, format!("antenna: {e}")).await {
                         return;
                     }
-                    attempt += 1;
                     continue;
                 }
             }
@@ -227,13 +223,9 @@ pub(super) async fn run(
         let (io, capture) = match ctx.open_link_recorded().await {
             Ok(opened) => opened,
             Err(e) => {
-                ctx.status(DeviceState::Reconnecting, format!("{e:#}"))
-                    .await;
-                tracing::warn!(error = %format!("{e:#}"), attempt, "xbee link failed");
-                if !pause(&ctx, backoff(attempt)).await {
+                if !retry_later(&ctx, &mut attempt, format!("xbee link: {e:#}")).await {
                     return;
                 }
-                attempt += 1;
                 continue;
             }
         };
@@ -243,13 +235,9 @@ pub(super) async fn run(
             r = client.set_node_discovery_timeout(nt) => r,
         };
         if let Err(e) = setup {
-            ctx.status(DeviceState::Reconnecting, format!("setting NT: {e}"))
-                .await;
-            tracing::warn!(error = %e, attempt, "xbee radio did not accept NT");
-            if !pause(&ctx, backoff(attempt)).await {
+            if !retry_later(&ctx, &mut attempt, format!("setting NT: {e}")).await {
                 return;
             }
-            attempt += 1;
             continue;
         }
         let Some(antenna) = rotator.take() else {
@@ -280,12 +268,9 @@ pub(super) async fn run(
         if !link_lost {
             break;
         }
-        ctx.status(DeviceState::Reconnecting, "radio stopped answering")
-            .await;
-        if !pause(&ctx, backoff(attempt)).await {
+        if !retry_later(&ctx, &mut attempt, "radio stopped answering").await {
             break;
         }
-        attempt += 1;
     }
     if let Some(Antenna::Gpio(handle)) = rotator {
         match handle.shutdown().await {

@@ -10,8 +10,8 @@ use std::time::Duration;
 use rfloc_xbee::{Address64, ApiMode, ClientConfig, NdLayoutHint, RssiSource, XBeeClient};
 
 use crate::config::{AntennaSide, XbeeSettings};
-use crate::daemon::{backoff, DeviceContext};
-use crate::devices::pause;
+use crate::daemon::DeviceContext;
+use crate::devices::retry_later;
 use crate::events::DeviceEvent;
 use crate::message::DeviceState;
 
@@ -51,13 +51,9 @@ pub(super) async fn run(ctx: DeviceContext, settings: XbeeSettings) {
         let (io, _capture) = match ctx.open_link_recorded().await {
             Ok(opened) => opened,
             Err(e) => {
-                ctx.status(DeviceState::Reconnecting, format!("{e:#}"))
-                    .await;
-                tracing::warn!(error = %format!("{e:#}"), attempt, "xbee link failed");
-                if !pause(&ctx, backoff(attempt)).await {
+                if !retry_later(&ctx, &mut attempt, format!("xbee link: {e:#}")).await {
                     return;
                 }
-                attempt += 1;
                 continue;
             }
         };
@@ -68,12 +64,9 @@ pub(super) async fn run(ctx: DeviceContext, settings: XbeeSettings) {
         if poll(&ctx, &mut client, antenna, Address64(emitter), period).await {
             break;
         }
-        ctx.status(DeviceState::Reconnecting, "radio stopped answering")
-            .await;
-        if !pause(&ctx, backoff(attempt)).await {
+        if !retry_later(&ctx, &mut attempt, "radio stopped answering").await {
             break;
         }
-        attempt += 1;
     }
     ctx.status(DeviceState::Closed, "stopped").await;
 }
