@@ -12,37 +12,20 @@ mod common;
 
 use std::time::Duration;
 
-/// `config/sim-xbee.toml` with a free pose port, an absolute scenario path, a faster clock and
-/// a capture folder.
+/// `config/sim-xbee.toml` with a free pose port, a faster clock, a longer time limit, less
+/// slip and a capture folder.
 fn config(dir: &std::path::Path, port: u16) -> std::path::PathBuf {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let text = std::fs::read_to_string(root.join("config/sim-xbee.toml")).unwrap();
-    let scenario = root.join("scenarios/seed003-case1.toml");
-    let text = text
-        .replace("127.0.0.1:2949", &format!("127.0.0.1:{port}"))
-        .replace("stdout = true", "stdout = false")
-        .replace(
-            "scenario = \"../scenarios/seed003-case1.toml\"",
-            &format!("scenario = {:?}", scenario.display().to_string()),
-        )
-        .replace("time_scale = 5.0", "time_scale = 10.0")
-        .replace("duration_s = 200.0", "duration_s = 1000.0")
-        .replace("slip_sigma = 0.05", "slip_sigma = 0.02")
-        .replace(
-            "[pose]",
-            &format!(
-                "[state]\ncapture_dir = {:?}\n\n[pose]",
-                dir.join("cap").display().to_string()
-            ),
-        );
-    assert!(
-        text.contains("slip_sigma = 0.02")
-            && text.contains("time_scale = 10.0")
-            && text.contains(&format!(":{port}"))
-    );
-    let path = dir.join("robot.toml");
-    std::fs::write(&path, text).unwrap();
-    path
+    common::sim_robot_file(
+        dir,
+        "sim-xbee.toml",
+        "127.0.0.1:2949",
+        port,
+        &[
+            ("time_scale = 5.0", "time_scale = 10.0"),
+            ("duration_s = 200.0", "duration_s = 1000.0"),
+            ("slip_sigma = 0.05", "slip_sigma = 0.02"),
+        ],
+    )
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

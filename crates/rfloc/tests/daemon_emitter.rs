@@ -17,31 +17,15 @@ use std::time::Duration;
 /// Emitter position in scenario A (`scenarios/worlds/seed001-a.toml`).
 const EMITTER: (f64, f64) = (4.0, 0.0);
 
-/// `config/sim-emitter.toml` with a free pose port, an absolute scenario path, a faster clock
-/// and a capture folder.
+/// `config/sim-emitter.toml` with a free pose port, a longer time limit and a capture folder.
 fn config(dir: &std::path::Path, port: u16) -> std::path::PathBuf {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let text = std::fs::read_to_string(root.join("config/sim-emitter.toml")).unwrap();
-    let scenario = root.join("scenarios/seed001-a.toml");
-    let text = text
-        .replace("127.0.0.1:2951", &format!("127.0.0.1:{port}"))
-        .replace("stdout = true", "stdout = false")
-        .replace(
-            "scenario = \"../scenarios/seed001-a.toml\"",
-            &format!("scenario = {:?}", scenario.display().to_string()),
-        )
-        .replace("duration_s = 120.0", "duration_s = 600.0")
-        .replace(
-            "[pose]",
-            &format!(
-                "[state]\ncapture_dir = {:?}\n\n[pose]",
-                dir.join("cap").display().to_string()
-            ),
-        );
-    assert!(text.contains(&format!(":{port}")) && text.contains("duration_s = 600.0"));
-    let path = dir.join("robot.toml");
-    std::fs::write(&path, text).unwrap();
-    path
+    common::sim_robot_file(
+        dir,
+        "sim-emitter.toml",
+        "127.0.0.1:2951",
+        port,
+        &[("duration_s = 120.0", "duration_s = 600.0")],
+    )
 }
 
 fn pose_of(v: &serde_json::Value) -> (i64, (f64, f64, f64)) {

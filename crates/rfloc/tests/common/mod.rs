@@ -17,6 +17,44 @@ pub fn free_port() -> u16 {
         .port()
 }
 
+/// A simulation robot file from `config/<name>` written to `dir/robot.toml` for a test: the pose
+/// port `port_from` (as `127.0.0.1:NNNN` in the file) moved to `port`, stdout off, the scenario
+/// path made absolute, captures into `dir/cap`, then each `(old, new)` edit. Every edit must
+/// change the text, so a test cannot silently run the file unedited after it changed.
+pub fn sim_robot_file(
+    dir: &std::path::Path,
+    name: &str,
+    port_from: &str,
+    port: u16,
+    edits: &[(&str, &str)],
+) -> std::path::PathBuf {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let mut text = std::fs::read_to_string(root.join("config").join(name)).unwrap();
+    let scenarios = root.join("scenarios").display().to_string();
+    let capture = format!(
+        "[state]\ncapture_dir = {:?}\n\n[pose]",
+        dir.join("cap").display().to_string()
+    );
+    let fixed = [
+        (port_from.to_string(), format!("127.0.0.1:{port}")),
+        ("stdout = true".into(), "stdout = false".into()),
+        ("\"../scenarios/".into(), format!("\"{scenarios}/")),
+        ("[pose]".into(), capture),
+    ];
+    let all = fixed
+        .iter()
+        .map(|(a, b)| (a.as_str(), b.as_str()))
+        .chain(edits.iter().copied());
+    for (old, new) in all {
+        let edited = text.replace(old, new);
+        assert_ne!(edited, text, "config/{name} has no {old:?} to edit");
+        text = edited;
+    }
+    let path = dir.join("robot.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
 /// `rfloc run -c <config>` with its log (stderr) collected.
 pub struct Daemon {
     child: Child,
