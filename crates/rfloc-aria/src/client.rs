@@ -21,6 +21,7 @@ use crate::command::{to_i16_clamped, vel2_units, ArgError, Command, CommandLimit
 use crate::frame::{Frame, FrameDecoder};
 use crate::odometry::{ConversionFactors, OdometryTracker};
 use crate::sip::{ConfigPacket, RobotIdentity, ServerPacket, SIP_MOVING, SIP_STOPPED};
+use crate::sonar::SonarRing;
 
 /// Errors of the client.
 #[derive(Debug, Error)]
@@ -75,6 +76,9 @@ pub struct Odometry {
     pub motors_enabled: bool,
     /// Number of motor SIPs decoded so far (0 = no odometry yet).
     pub seq: u64,
+    /// The sonar ring's latest ranges (all `None` while sonar is off); `updated` says which
+    /// discs this SIP brought.
+    pub sonar: SonarRing,
 }
 
 /// State of the link, published on a watch channel.
@@ -280,6 +284,7 @@ impl AriaClient {
             clock,
             counters: Arc::clone(&counters),
             tracker: OdometryTracker::new(factors),
+            sonar: SonarRing::p3dx(),
             odom_tx,
             state_tx,
             rx,
@@ -686,6 +691,7 @@ struct Worker {
     clock: SharedClock,
     counters: Arc<ClientCounters>,
     tracker: OdometryTracker,
+    sonar: SonarRing,
     odom_tx: watch::Sender<Odometry>,
     state_tx: watch::Sender<LinkState>,
     rx: mpsc::Receiver<Request>,
@@ -775,6 +781,7 @@ impl Worker {
         match ServerPacket::from_frame(frame) {
             Ok(ServerPacket::Motor(sip)) => {
                 let s = self.tracker.update(&sip);
+                self.sonar.update(&sip, &self.tracker.factors());
                 self.seq += 1;
                 self.counters.sips.fetch_add(1, Ordering::Relaxed);
                 let odo = Odometry {
@@ -789,6 +796,7 @@ impl Worker {
                     battery_v: s.battery_v,
                     motors_enabled: s.motors_enabled,
                     seq: self.seq,
+                    sonar: self.sonar,
                 };
                 let _ = self.odom_tx.send(odo);
                 return true;

@@ -34,6 +34,7 @@ use crate::command::{number, Arg, Command, LinkPhase};
 use crate::frame::{Frame, FrameDecoder};
 use crate::odometry::ConversionFactors;
 use crate::sip::{ConfigPacket, MotorSip, RobotIdentity, SipTail, SonarReading, StallBumpers};
+use crate::sonar::{p3dx_discs, SonarDisc, NO_ECHO_M};
 
 /// Substeps of the kinematics per SIP period.
 const SUBSTEPS: u32 = 10;
@@ -264,6 +265,10 @@ async fn next_step(steps: &mut Option<mpsc::Receiver<StepRequest>>) -> Option<St
 /// accept (e.g. clipped at a wall). Returning anything but the proposal counts as a stall.
 pub type MotionHook = Box<dyn FnMut(&Pose2, &Pose2) -> Pose2 + Send>;
 
+/// Called with (current truth, disc) for each sonar reading the emulator reports; returns the
+/// range to the nearest echo in metres, `None` for no echo (reported as 5 m).
+pub type SonarHook = Box<dyn FnMut(&Pose2, &SonarDisc) -> Option<f64> + Send>;
+
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum RotMode {
     /// deg/s.
@@ -277,6 +282,7 @@ pub struct RobotEmulator {
     config: EmulatorConfig,
     factors: ConversionFactors,
     hook: Option<MotionHook>,
+    sonar_hook: Option<SonarHook>,
     state_tx: watch::Sender<EmulatorState>,
     st: EmulatorState,
     /// Wheel slip: seed, distribution, and the generator of the current tick.
@@ -340,6 +346,7 @@ impl RobotEmulator {
             config,
             factors,
             hook: None,
+            sonar_hook: None,
             state_tx,
             st,
             slip,
@@ -364,6 +371,14 @@ impl RobotEmulator {
     #[must_use]
     pub fn with_motion_hook(mut self, hook: MotionHook) -> Self {
         self.hook = Some(hook);
+        self
+    }
+
+    /// Installs a sonar hook: with sonar on, each SIP's readings (four discs in turn) are the
+    /// hook's ranges at the true pose for the P3-DX discs, instead of `sonar_range_mm`.
+    #[must_use]
+    pub fn with_sonar_hook(mut self, hook: SonarHook) -> Self {
+        self.sonar_hook = Some(hook);
         self
     }
 
@@ -830,10 +845,19 @@ impl RobotEmulator {
         let mut sonar = Vec::new();
         if self.sonar_on {
             flags |= 0b1_1110;
+            let discs = p3dx_discs();
             for _ in 0..4 {
+                let number = self.sonar_next;
+                let range_mm = match (&mut self.sonar_hook, discs.get(usize::from(number))) {
+                    (Some(hook), Some(disc)) => hook(&self.st.truth, disc)
+                        .map_or(NO_ECHO_M * 1000.0, |m| {
+                            (m * 1000.0).clamp(0.0, NO_ECHO_M * 1000.0)
+                        }),
+                    _ => f64::from(self.config.sonar_range_mm),
+                };
                 sonar.push(SonarReading {
-                    number: self.sonar_next,
-                    range: (f64::from(self.config.sonar_range_mm) / f.range_conv).round() as u16,
+                    number,
+                    range: (range_mm / f.range_conv).round() as u16,
                 });
                 self.sonar_next = (self.sonar_next + 1) % 16;
             }
@@ -1024,6 +1048,24 @@ mod tests {
             (sb.front_bumpers(), sb.rear_bumpers(), sb.left_stall()),
             (0, 0, false)
         );
+    }
+
+    #[test]
+    fn sonar_hook_ranges_reach_the_sip_disc_by_disc() {
+        // An echo 1.25 m ahead of the discs that look forward within ±15°, none elsewhere.
+        let hook: SonarHook =
+            Box::new(|_truth, disc| (disc.heading_rad.abs() < 15f64.to_radians()).then_some(1.25));
+        let mut e = opened(EmulatorConfig::default()).with_sonar_hook(hook);
+        e.handle_frame(&Command::Sonar(true).to_frame(&Default::default()).unwrap());
+        let mut seen = std::collections::BTreeMap::new();
+        for _ in 0..4 {
+            for r in e.motor_sip().sonar {
+                seen.insert(r.number, r.range);
+            }
+        }
+        assert_eq!(seen.len(), 16, "the whole ring in four SIPs");
+        assert_eq!((seen[&3], seen[&4]), (1250, 1250), "discs at ±10°");
+        assert!(seen.iter().all(|(n, r)| matches!(n, 3 | 4) || *r == 5000));
     }
 
     #[test]

@@ -20,6 +20,7 @@ pub mod frame;
 mod mock_base;
 pub mod odometry;
 pub mod sip;
+pub mod sonar;
 
 pub use client::{
     AriaClient, ClientConfig, ClientError, ClientStats, ConnectFuture, LinkState, MobileBase,
@@ -28,7 +29,7 @@ pub use client::{
 pub use command::{Arg, ArgError, Command, CommandError, CommandLimits, LinkPhase};
 pub use emulator::{
     EmulatorConfig, EmulatorError, EmulatorHandle, EmulatorState, MotionHook, RobotEmulator,
-    StepControl, WheelSlip,
+    SonarHook, StepControl, WheelSlip,
 };
 pub use frame::{checksum, EncodeError, Frame, FrameDecoder, FrameError};
 pub use mock_base::{MockBase, MockBaseCall};
@@ -37,3 +38,4 @@ pub use sip::{
     ConfigPacket, MotorSip, RobotIdentity, ServerPacket, SipError, SipTail, SonarReading,
     StallBumpers,
 };
+pub use sonar::{p3dx_discs, SonarDisc, SonarRing, NO_ECHO_M};

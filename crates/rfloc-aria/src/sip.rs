@@ -136,7 +136,7 @@ impl StallBumpers {
 
 /// The standard motor SIP, types `0x32`/`0x33` (docs §5.1). Raw units; conversion happens in
 /// [`crate::odometry`].
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct MotorSip {
     /// Type `0x33` (moving) rather than `0x32` (stopped).
     pub moving: bool,

@@ -97,6 +97,10 @@ pub struct AriaSettings {
     /// Seconds without a command before a PULSE keeps the robot's watchdog fed.
     #[serde(default = "default_pulse")]
     pub pulse_period_s: f64,
+    /// Switch the sonar ring on and publish its ranges as range scans (for a pipeline that
+    /// maps obstacles, on a robot without a laser).
+    #[serde(default)]
+    pub sonar: bool,
 }
 fn default_pulse() -> f64 {
     1.0

@@ -283,6 +283,7 @@ async fn replay_aria(name: &str, cap: Capture) -> anyhow::Result<Vec<DeviceEvent
     let mut tracker: Option<OdometryTracker> = None;
     let mut stalled = false;
     let mut bumpers = (false, false);
+    let mut sonar = rfloc_aria::SonarRing::p3dx();
     let mut out = Vec::new();
     let mut skipped = 0u64;
     for rec in &cap.records {
@@ -305,6 +306,10 @@ async fn replay_aria(name: &str, cap: Capture) -> anyhow::Result<Vec<DeviceEvent
                     let t = tracker
                         .get_or_insert_with(|| OdometryTracker::new(ConversionFactors::P3DX_SH));
                     let s = t.update(&sip);
+                    // As the device task with sonar on: the ring after every SIP with ranges.
+                    let scan = sonar
+                        .update(&sip, &t.factors())
+                        .then(|| crate::devices::sonar_beams(&sonar));
                     out.push(DeviceEvent::Odometry {
                         device: name.to_string(),
                         t: rec.t(),
@@ -312,6 +317,13 @@ async fn replay_aria(name: &str, cap: Capture) -> anyhow::Result<Vec<DeviceEvent
                         v: s.v,
                         w: s.w,
                     });
+                    if let Some(beams) = scan {
+                        out.push(DeviceEvent::RangeScan {
+                            device: name.to_string(),
+                            t: rec.t(),
+                            beams,
+                        });
+                    }
                     // As the device task: one event when a stall begins.
                     let stalled_now =
                         sip.stall_bumpers.left_stall() || sip.stall_bumpers.right_stall();

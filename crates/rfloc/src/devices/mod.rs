@@ -17,6 +17,7 @@ mod xbee;
 mod xbee_receiver;
 
 pub use alien::{average_reads, parse_snapshot_mark, snapshot_mark};
+pub(crate) use aria::sonar_beams;
 pub use xbee::{swept_beacons, AntennaSource, NdRssiProbe, SweepMark, SweepRequest, SweepSetup};
 
 /// A velocity command for the base: (m/s, rad/s).

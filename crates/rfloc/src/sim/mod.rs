@@ -99,6 +99,8 @@ pub struct SimRuntime {
     /// within it: the referee's time, not the robot's belief.
     goal: Option<(rfloc_sim::Point, f64)>,
     goal_reached: Option<f64>,
+    /// The base reports sonar ranges (its settings switch sonar on).
+    base_sonar: bool,
 }
 
 /// Published poses scored against the emulated robot's true pose.
@@ -264,6 +266,10 @@ pub async fn start(
         sensors: None,
         goal: None,
         goal_reached: None,
+        base_sonar: cfg
+            .devices
+            .iter()
+            .any(|d| matches!(&d.driver, DriverConfig::Aria(a) if a.sonar)),
     };
     let start = Pose2::new(sim.start[0], sim.start[1], sim.start[2].to_radians());
     let scenario = match &sim.scenario {
@@ -306,6 +312,7 @@ pub async fn start(
             )),
             None if emitter_world.is_some() => {
                 let sc = emitter_world.context("emitter world")?;
+                let world = Arc::new(sc.world.clone());
                 RobotEmulator::new(RobotEmulatorConfig {
                     time_scale: sim.time_scale,
                     initial_pose: start,
@@ -314,9 +321,10 @@ pub async fn start(
                     ..RobotEmulatorConfig::default()
                 })
                 .with_motion_hook(walls::wall_hook(
-                    Arc::new(sc.world.clone()),
+                    Arc::clone(&world),
                     sc.spec.robot.drive.body_radius,
                 ))
+                .with_sonar_hook(walls::sonar_hook(world))
             }
             None => RobotEmulator::new(RobotEmulatorConfig {
                 time_scale: sim.time_scale,
@@ -633,6 +641,10 @@ impl SimRuntime {
         period_s: f64,
         stop: CancellationToken,
     ) {
+        if self.base_sonar {
+            tracing::info!("the base's sonar ring maps obstacles; no simulated laser");
+            return;
+        }
         let (Some((sensors, world)), Some(base)) = (self.sensors.clone(), self.base.clone()) else {
             return;
         };
