@@ -146,17 +146,19 @@ mod tests {
     #[test]
     fn readings_are_kept_per_disc_and_unknown_discs_counted() {
         let mut ring = SonarRing::p3dx();
-        let mut sip = MotorSip::default();
-        sip.sonar = vec![
-            SonarReading {
-                number: 3,
-                range: 1200,
-            },
-            SonarReading {
-                number: 20,
-                range: 500,
-            },
-        ];
+        let mut sip = MotorSip {
+            sonar: vec![
+                SonarReading {
+                    number: 3,
+                    range: 1200,
+                },
+                SonarReading {
+                    number: 20,
+                    range: 500,
+                },
+            ],
+            ..MotorSip::default()
+        };
         assert!(ring.update(&sip, &ConversionFactors::P3DX_SH));
         let got: Vec<(f64, f64)> = ring.readings().map(|(d, r)| (d.heading_rad, r)).collect();
         assert_eq!(got.len(), 1);
