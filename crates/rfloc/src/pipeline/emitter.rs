@@ -7,7 +7,8 @@
 //!   newest reading of each receiver if all four are younger than `reading_window_s` (each
 //!   reading is used once) and feeds it to the particle filter at the step's pose; then the
 //!   navigator, given the latest scan and the filtered estimate, makes a velocity request.
-//! - **Scans** go into the occupancy grid (full system) as they arrive, at the latest pose.
+//! - **Scans** go into the occupancy grid (full system) at the pose of the next odometry event,
+//!   before that event's control step.
 //! - **Bumpers** come from the base's SIPs (`DeviceEvent::Bumpers`, on every change); the
 //!   navigator's reflex backs away from a front contact and pulls away from a rear one.
 
@@ -87,6 +88,8 @@ pub struct EmitterPipeline {
     dead_reckoning: OdometryPipeline,
     /// The latest published pose (start ∘ odometry).
     pose: Option<Pose2>,
+    /// A scan waiting for the next odometry event, whose pose it is integrated at.
+    pending_scan: Option<Vec<rfloc_emitter::ScanBeam>>,
     /// Newest reading per receiver: front, left, back, right; (time, dBm).
     readings: [Option<(f64, f64)>; 4],
     control_period_s: f64,
@@ -118,16 +121,35 @@ impl EmitterPipeline {
     /// Filter or grid settings the emitter crate refuses.
     pub fn new(s: &EmitterSettings) -> Result<Self, String> {
         let start = Pose2::new(s.start[0], s.start[1], s.start[2].to_radians());
-        let homing =
-            EmitterHoming::new(homing_config(s, &start), &start).map_err(|e| format!("{e:#}"))?;
+        Self::from_homing(
+            homing_config(s, &start),
+            start,
+            s.control_period_s,
+            s.reading_window_s,
+        )
+    }
+
+    /// A pipeline with a homing configuration of its own (the `rfloc sim` trials calibrate
+    /// theirs against the scenario), for a robot starting at `start`.
+    ///
+    /// # Errors
+    /// Filter or grid settings the emitter crate refuses.
+    pub fn from_homing(
+        config: HomingConfig,
+        start: Pose2,
+        control_period_s: f64,
+        reading_window_s: f64,
+    ) -> Result<Self, String> {
+        let homing = EmitterHoming::new(config, &start).map_err(|e| format!("{e:#}"))?;
         Ok(Self {
             homing,
             start,
             dead_reckoning: OdometryPipeline::default(),
             pose: None,
+            pending_scan: None,
             readings: [None; 4],
-            control_period_s: s.control_period_s,
-            reading_window_s: s.reading_window_s,
+            control_period_s,
+            reading_window_s,
             next_control: None,
             next_log: 0.0,
             arrived: false,
@@ -143,6 +165,18 @@ impl EmitterPipeline {
     #[must_use]
     pub fn counters(&self) -> EmitterCounters {
         self.counters
+    }
+
+    /// The homing state (filter, grid, navigator counters).
+    #[must_use]
+    pub fn homing(&self) -> &EmitterHoming {
+        &self.homing
+    }
+
+    /// Whether the navigator's last step stopped at the emitter.
+    #[must_use]
+    pub fn arrived(&self) -> bool {
+        self.arrived
     }
 
     /// The filtered emitter position, once there is one.
@@ -277,6 +311,9 @@ impl Pipeline for EmitterPipeline {
                 estimate.pose = pose;
                 estimate.source = "emitter".into();
                 self.pose = Some(pose);
+                if let Some(beams) = self.pending_scan.take() {
+                    self.homing.observe_scan(&pose, beams);
+                }
                 let due = *self.next_control.get_or_insert(*t);
                 // A microsecond of slack: odometry stamped on a 0.1 s grid must not miss a
                 // 0.2 s step to rounding (0.1·48 vs 0.2·24).
@@ -302,8 +339,10 @@ impl Pipeline for EmitterPipeline {
                 None
             }
             DeviceEvent::RangeScan { beams, .. } => {
-                let pose = self.pose.unwrap_or(self.start);
-                self.homing.observe_scan(&pose, beams.clone());
+                // Integrated at the next odometry pose: at most one SIP period (0.1 s) after
+                // the scan, as close as the previous one and never before the control step
+                // that follows it. A newer scan replaces one still waiting.
+                self.pending_scan = Some(beams.clone());
                 self.counters.scans += 1;
                 None
             }

@@ -4,8 +4,11 @@
 //! time moves one SIP period (0.1 s) at a time, when the loop asks for it, and only after the
 //! emulator has handled every command the driver wrote. Tick `n` (counted from 0 at the first
 //! SIP) is at `t = n · 0.1 s`. Control steps fall on every [`CONTROL_TICKS`]th tick from
-//! [`SETTLE_TICKS`]; each reads the sensors at the emulator's true pose after its tick, updates
-//! the filter and the map and asks the navigator for a command. The command is written after
+//! [`SETTLE_TICKS`]; each reads the sensors at the emulator's true pose after its tick and hands
+//! them to the daemon's own `EmitterPipeline` as device events (four `EmitterRss`, one
+//! `RangeScan`, `Bumpers`), followed by the tick's `Odometry`, on which the pipeline updates
+//! the filter and the map and asks the navigator for a command. From the settle time on every
+//! tick's odometry goes to the pipeline, as a robot's would. The command is written after
 //! tick `n + ACTUATION_DELAY_TICKS` and is in force from the tick after: a fixed actuation
 //! latency of three ticks (0.3 s simulated), as a slower real control loop would have.
 //!
@@ -21,16 +24,16 @@ use std::sync::Arc;
 
 use anyhow::Context;
 use rfloc_aria::{AriaClient, EmulatorConfig, EmulatorHandle, RobotEmulator, StepControl};
-use rfloc_emitter::{
-    AntennaRss, Bumpers, NavigatorConfig, NavigatorState, OccupancyGridConfig,
-    ParticleFilterConfig, Point2, ScanBeam,
-};
+use rfloc_emitter::{NavigatorConfig, OccupancyGridConfig, ParticleFilterConfig, Point2, ScanBeam};
 use rfloc_pose::Pose2;
 use rfloc_sim::{Point, Scenario, SensorSuite};
 use rfloc_transport::{CaptureSink, LinkConfig, Recorder, SharedClock};
 
 use super::calibration::calibrate;
-use crate::pipeline::emitter::{EmitterHoming, HomingConfig};
+use crate::config::AntennaSide;
+use crate::events::DeviceEvent;
+use crate::pipeline::emitter::{EmitterPipeline, HomingConfig};
+use crate::pipeline::{Pipeline, Request};
 use crate::scenario::lockstep::{driver_config, LockstepBase};
 use crate::sim::walls::wall_hook;
 use crate::sim::{trial_capture, EmulatorClock};
@@ -130,19 +133,6 @@ fn homing_config(
         navigator,
         seed: seed ^ 0x5046_5345_4544, // "PFSEED"
     })
-}
-
-fn to_antenna_rss(rss: &[Option<f64>; 4]) -> Option<AntennaRss> {
-    // rfloc-sim orders the antennas front, left, back, right.
-    match *rss {
-        [Some(front), Some(left), Some(back), Some(right)] => Some(AntennaRss {
-            front,
-            back,
-            left,
-            right,
-        }),
-        _ => None,
-    }
 }
 
 /// Runs the system once; the robot starts at the scenario's start pose for `trial`.
@@ -274,10 +264,15 @@ impl Mission<'_> {
         let scenario = spec.scenario;
         let mut sensors = SensorSuite::for_trial(scenario, spec.trial);
         let max_range = sensors.scanner.max_range;
-        let mut homing = EmitterHoming::new(
+        // The daemon's pipeline, fed the device events a robot would send: control steps on
+        // the odometry of every CONTROL_TICKS-th tick, each reading used only in its own step.
+        let mut pipeline = EmitterPipeline::from_homing(
             homing_config(scenario, &self.start, spec.use_planner, self.seed)?,
-            &self.start,
-        )?;
+            self.start,
+            CONTROL_TICKS as f64 * TICK_S,
+            READING_WINDOW_S,
+        )
+        .map_err(|e| anyhow::anyhow!("emitter pipeline: {e}"))?;
         let mut out = RunOutcome::default();
         // Commands computed at a control tick, with the tick after which they are written.
         let mut queued: VecDeque<(u64, (f64, f64))> = VecDeque::new();
@@ -302,25 +297,54 @@ impl Mission<'_> {
                     base.set_velocity(v, w).await?;
                 }
             }
-            if tick < SETTLE_TICKS || (tick - SETTLE_TICKS) % CONTROL_TICKS != 0 {
+            if tick < SETTLE_TICKS {
                 continue;
             }
-            let step = ControlStep {
+            let control = (tick - SETTLE_TICKS) % CONTROL_TICKS == 0;
+            if control {
+                out.pose_estimate
+                    .push((t, self.start.compose(&odometry.pose)));
+                let sensed = Sensed {
+                    t,
+                    truth,
+                    world: self.world,
+                    radius: self.radius,
+                    max_range,
+                };
+                for event in sensed.events(&mut sensors) {
+                    pipeline.handle(&event);
+                }
+            }
+            pipeline.handle(&DeviceEvent::Odometry {
+                device: "base".into(),
                 t,
-                truth,
-                pose: self.start.compose(&odometry.pose),
-            };
-            let cmd = control_step(
-                &step,
-                &mut homing,
-                &mut sensors,
-                self.world,
-                self.radius,
-                self.emitter,
-                max_range,
-                &mut out,
-            );
-            if cmd.state == NavigatorState::Arrived {
+                pose: odometry.pose,
+                v: odometry.v,
+                w: odometry.w,
+            });
+            for target in pipeline.take_targets() {
+                let (est, raw) = (
+                    Point::new(target.x, target.y),
+                    target
+                        .raw
+                        .map_or(Point::new(target.x, target.y), |(x, y)| Point::new(x, y)),
+                );
+                out.filtered_errors.push(est.distance(&self.emitter));
+                out.raw_errors.push(raw.distance(&self.emitter));
+                out.final_estimate = Some(Point2::new(target.x, target.y));
+                let here = Point::new(truth.x, truth.y);
+                out.line_of_sight
+                    .push(self.world.walls_crossed(&here, &self.emitter) == 0);
+            }
+            for request in pipeline.take_requests() {
+                if let Request::Velocity { v, w } = request {
+                    queued.push_back((tick + ACTUATION_DELAY_TICKS, (v, w)));
+                }
+            }
+            if !control {
+                continue;
+            }
+            if pipeline.arrived() {
                 out.robot_arrived = true;
                 let since_arrival = *arrived_since.get_or_insert(t);
                 if t - since_arrival >= ARRIVED_HOLD_S {
@@ -329,71 +353,75 @@ impl Mission<'_> {
             } else {
                 arrived_since = None;
             }
-            queued.push_back((tick + ACTUATION_DELAY_TICKS, (cmd.v_mps, cmd.omega_rps)));
         }
-        out.plans = homing.plan_count();
-        out.rejected_rss = homing.rejected_rss();
-        out.filter_restarts = homing.reinitialisations();
+        out.plans = pipeline.homing().plan_count();
+        out.rejected_rss = pipeline.homing().rejected_rss();
+        out.filter_restarts = pipeline.homing().reinitialisations();
+        out.bumper_steps = pipeline.counters().bumps;
         Ok(out)
     }
 }
 
-/// When and where a control step happens.
-struct ControlStep {
+/// Receiver readings older than this are not combined: only the readings of the step's own
+/// tick (the trial reads all four at once).
+const READING_WINDOW_S: f64 = 0.05;
+
+/// The sensors of one control tick, read at the emulator's true pose.
+struct Sensed<'a> {
     t: f64,
-    /// The emulator's true pose after the step's tick (what the sensors see).
     truth: Pose2,
-    /// The robot's pose belief: start pose composed with odometry.
-    pose: Pose2,
+    world: &'a rfloc_sim::World,
+    radius: f64,
+    max_range: f64,
 }
 
-/// Sensors at the true pose of the step's tick → filter, map → navigator command. The draws
-/// are in a fixed order: the receivers, then the laser (bumpers draw nothing).
-#[allow(clippy::too_many_arguments)]
-fn control_step(
-    step: &ControlStep,
-    homing: &mut EmitterHoming,
-    sensors: &mut SensorSuite,
-    world: &rfloc_sim::World,
-    radius: f64,
-    emitter: Point,
-    max_range: f64,
-    out: &mut RunOutcome,
-) -> rfloc_emitter::NavigationCommand {
-    let (t, pose, truth) = (step.t, step.pose, step.truth);
-    out.pose_estimate.push((t, pose));
-    // 915 MHz receivers and laser: in-process models at the true pose (no wire protocol).
-    if let Some(rss) = to_antenna_rss(&sensors.emitter_rss(world, &truth)) {
-        if let Some(est) = homing.observe_rss(t, &pose, &rss) {
-            out.filtered_errors
-                .push(Point::new(est.mean.x, est.mean.y).distance(&emitter));
-            out.raw_errors
-                .push(Point::new(est.raw.x, est.raw.y).distance(&emitter));
-            out.final_estimate = Some(est.mean);
-            let here = Point::new(truth.x, truth.y);
-            out.line_of_sight
-                .push(world.walls_crossed(&here, &emitter) == 0);
-        }
+impl Sensed<'_> {
+    /// The tick's device events, drawn in a fixed order: the four receivers, then the laser
+    /// (bumpers draw nothing). The 915 MHz receivers and the laser are in-process models at
+    /// the true pose (no wire protocol in these trials); the bumpers are sent every step.
+    fn events(&self, sensors: &mut SensorSuite) -> Vec<DeviceEvent> {
+        let (t, truth) = (self.t, self.truth);
+        let rss = sensors.emitter_rss(self.world, &truth);
+        // rfloc-sim orders the antennas front, left, back, right.
+        let sides = [
+            AntennaSide::Front,
+            AntennaSide::Left,
+            AntennaSide::Back,
+            AntennaSide::Right,
+        ];
+        let mut events: Vec<DeviceEvent> = sides
+            .iter()
+            .zip(rss)
+            .map(|(side, dbm)| DeviceEvent::EmitterRss {
+                device: format!("rx-{side:?}"),
+                t,
+                antenna: *side,
+                dbm,
+            })
+            .collect();
+        let beams: Vec<ScanBeam> = sensors
+            .laser_scan(self.world, &truth)
+            .into_iter()
+            .map(|b| ScanBeam {
+                angle_rad: b.angle,
+                range_m: if b.hit { b.range } else { self.max_range },
+                max_range_m: self.max_range,
+            })
+            .collect();
+        events.push(DeviceEvent::RangeScan {
+            device: "laser".into(),
+            t,
+            beams,
+        });
+        let contact = sensors.bumpers(self.world, &truth, self.radius);
+        events.push(DeviceEvent::Bumpers {
+            device: "base".into(),
+            t,
+            front: contact.front,
+            rear: contact.rear,
+        });
+        events
     }
-    let beams: Vec<ScanBeam> = sensors
-        .laser_scan(world, &truth)
-        .into_iter()
-        .map(|b| ScanBeam {
-            angle_rad: b.angle,
-            range_m: if b.hit { b.range } else { max_range },
-            max_range_m: max_range,
-        })
-        .collect();
-    homing.observe_scan(&pose, beams);
-    let contact = sensors.bumpers(world, &truth, radius);
-    let bumpers = Bumpers {
-        front: contact.front,
-        rear: contact.rear,
-    };
-    if bumpers.front || bumpers.rear {
-        out.bumper_steps += 1;
-    }
-    homing.command(t, pose, bumpers)
 }
 
 /// Capture file of a run inside the trial folder.
