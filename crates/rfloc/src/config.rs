@@ -189,6 +189,16 @@ pub enum AntennaSide {
 }
 
 impl XbeeSettings {
+    /// The radio's API mode (`api_mode` 1: unescaped, else escaped).
+    #[must_use]
+    pub fn mode(&self) -> rfloc_xbee::ApiMode {
+        if self.api_mode == 1 {
+            rfloc_xbee::ApiMode::Unescaped
+        } else {
+            rfloc_xbee::ApiMode::Escaped
+        }
+    }
+
     /// The emitter's address of an `emitter_receiver`, parsed.
     #[must_use]
     pub fn emitter_address(&self) -> Option<u64> {

@@ -42,16 +42,10 @@ async fn ekfslam_daemon_maps_beacons_and_drives_the_waypoints() {
     let mut parked: Option<(f64, f64, f64)> = None;
     let deadline = tokio::time::Instant::now() + Duration::from_secs(120);
     let last = loop {
-        let line = match tokio::time::timeout_at(deadline, lines.next_line()).await {
-            Ok(Ok(Some(line))) => line,
-            _ => {
-                let (_, log) = daemon.terminate_or_collect().await;
-                let tail: Vec<&str> = log.lines().rev().take(40).collect();
-                panic!(
-                    "the robot never parked at the last waypoint; log tail:\n{}",
-                    tail.into_iter().rev().collect::<Vec<_>>().join("\n")
-                );
-            }
+        let Some(line) = common::next_line_before(&mut lines, deadline).await else {
+            daemon
+                .fail_with_log_tail("the robot never parked at the last waypoint")
+                .await
         };
         let v: serde_json::Value = serde_json::from_str(&line).unwrap();
         if v["class"] != "POSE" {

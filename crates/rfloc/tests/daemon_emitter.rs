@@ -72,16 +72,10 @@ async fn home_on_the_emitter(edits: &[(&str, &str)], seed_full_s: f64) -> String
     let (mut targets, mut last_target) = (0usize, None);
     let deadline = tokio::time::Instant::now() + Duration::from_secs(120);
     loop {
-        let line = match tokio::time::timeout_at(deadline, lines.next_line()).await {
-            Ok(Ok(Some(line))) => line,
-            _ => {
-                let (_, log) = daemon.terminate_or_collect().await;
-                let tail: Vec<&str> = log.lines().rev().take(40).collect();
-                panic!(
-                    "the robot never stood still near the emitter; log tail:\n{}",
-                    tail.into_iter().rev().collect::<Vec<_>>().join("\n")
-                );
-            }
+        let Some(line) = common::next_line_before(&mut lines, deadline).await else {
+            daemon
+                .fail_with_log_tail("the robot never stood still near the emitter")
+                .await
         };
         let v: serde_json::Value = serde_json::from_str(&line).unwrap();
         if v["class"] == "TARGET" {

@@ -17,7 +17,7 @@ use rfloc_bearing::{RssiProbe as SweepProbe, ScanConfig, ScanError, ScanRunner};
 use rfloc_stepper::gpio::{open_gpio_stepper, GpioStepperConfig, LineRef};
 use rfloc_stepper::{AntennaRotator, SimulatedStepper, StepperConfig, StepperError, StepperHandle};
 use rfloc_transport::CaptureSink;
-use rfloc_xbee::{ApiMode, ClientConfig, NdLayoutHint, XBeeClient, XBeeError};
+use rfloc_xbee::{ClientConfig, NdLayoutHint, XBeeClient, XBeeError};
 use tokio::io::{AsyncRead, AsyncWrite};
 use tokio::sync::mpsc;
 
@@ -177,11 +177,7 @@ pub fn swept_beacons(report: &rfloc_bearing::SweepReport) -> Vec<SweptBeacon> {
 
 fn client_config(settings: &XbeeSettings) -> ClientConfig {
     ClientConfig {
-        mode: if settings.api_mode == 1 {
-            ApiMode::Unescaped
-        } else {
-            ApiMode::Escaped
-        },
+        mode: settings.mode(),
         nd_layout: NdLayoutHint::Auto,
         discovery_margin: Duration::from_millis(500),
         ..ClientConfig::default()

@@ -7,7 +7,7 @@
 
 use std::time::Duration;
 
-use rfloc_xbee::{Address64, ApiMode, ClientConfig, NdLayoutHint, RssiSource, XBeeClient};
+use rfloc_xbee::{Address64, ClientConfig, NdLayoutHint, RssiSource, XBeeClient};
 
 use crate::config::{AntennaSide, XbeeSettings};
 use crate::daemon::DeviceContext;
@@ -21,11 +21,7 @@ const FAILED_POLLS_BEFORE_RECONNECT: u32 = 3;
 fn client_config(settings: &XbeeSettings, time_scale: f64) -> ClientConfig {
     let scale = |d: Duration| Duration::from_secs_f64(d.as_secs_f64() / time_scale.max(1.0));
     ClientConfig {
-        mode: if settings.api_mode == 1 {
-            ApiMode::Unescaped
-        } else {
-            ApiMode::Escaped
-        },
+        mode: settings.mode(),
         nd_layout: NdLayoutHint::Auto,
         rssi_source: RssiSource::LocalDbAfterRemote,
         // A poll that waits longer than a few periods is stale anyway.

@@ -22,8 +22,8 @@ use std::sync::Mutex;
 use rfloc_aria::WheelSlip;
 use rfloc_stepper::{SimulatedStepper, StepperConfig};
 use rfloc_xbee::{
-    Address16, Address64, ApiMode, Beacon, CoordinatorEmulator,
-    EmulatorConfig as XBeeEmulatorConfig, NdLayout, RssiFn,
+    Address16, Address64, Beacon, CoordinatorEmulator, EmulatorConfig as XBeeEmulatorConfig,
+    NdLayout, RssiFn,
 };
 
 use crate::config::{
@@ -231,6 +231,24 @@ impl SimRuntime {
     }
 }
 
+impl SimRuntime {
+    /// Runs an emulator's serve future until it ends or the simulation stops; an error it
+    /// ends with is logged as `what`.
+    fn serve_until_stopped<F, T, E>(&mut self, what: &'static str, serve: F)
+    where
+        F: std::future::Future<Output = Result<T, E>> + Send + 'static,
+        E: std::fmt::Display,
+    {
+        let stop = self.emulators.clone();
+        self.tasks.push(tokio::spawn(async move {
+            tokio::select! {
+                () = stop.cancelled() => {}
+                r = serve => if let Err(e) = r { tracing::warn!(error = %e, "{what}") },
+            }
+        }));
+    }
+}
+
 pub(crate) fn pty_link(baud: u32) -> anyhow::Result<(SerialStream, SerialStream, LinkConfig)> {
     let (master, slave) = SerialStream::pair().context("creating a pseudo-terminal pair")?;
     let path = slave.name().context("pseudo-terminal has no name")?;
@@ -300,7 +318,7 @@ pub async fn start(
         .filter(|d| matches!(d.driver, DriverConfig::Aria(_)))
     {
         let (master, slave, link) = pty_link(9600)?;
-        let mut emulator = match snapshot_world {
+        let emulator = match snapshot_world {
             Some(sc) => RobotEmulator::new(RobotEmulatorConfig {
                 time_scale: sim.time_scale,
                 initial_pose: start,
@@ -338,13 +356,10 @@ pub async fn start(
             }),
         };
         runtime.base = Some(emulator.handle());
-        let stop = emulators.clone();
-        runtime.tasks.push(tokio::spawn(async move {
-            tokio::select! {
-                () = stop.cancelled() => {}
-                r = emulator.serve(master) => if let Err(e) = r { tracing::warn!(error = %e, "robot emulator ended") },
-            }
-        }));
+        runtime.serve_until_stopped("robot emulator ended", async move {
+            let mut emulator = emulator;
+            emulator.serve(master).await
+        });
         tracing::info!(device = %device.name, link = %link.describe(), "emulated Pioneer on a pty");
         device.link = Some(link);
         runtime._slaves.push(slave);
@@ -366,13 +381,7 @@ pub async fn start(
         kcfg.seed = sim.seed;
         kcfg.miss_probability = 0.1;
         let emulator = KtsEmulator::new(kcfg);
-        let stop = emulators.clone();
-        runtime.tasks.push(tokio::spawn(async move {
-            tokio::select! {
-                () = stop.cancelled() => {}
-                r = emulator.serve(master) => if let Err(e) = r { tracing::warn!(error = %e, "HF reader emulator ended") },
-            }
-        }));
+        runtime.serve_until_stopped("HF reader emulator ended", emulator.serve(master));
         tracing::info!(device = %device.name, link = %link.describe(), "emulated KTS reader on a pty");
         device.link = Some(link);
         runtime._slaves.push(slave);
@@ -501,11 +510,7 @@ fn start_xbee(
         if x.role != XbeeRole::Sweep {
             continue;
         }
-        let mode = if x.api_mode == 1 {
-            ApiMode::Unescaped
-        } else {
-            ApiMode::Escaped
-        };
+        let mode = x.mode();
         let beacons = xbee_beacons(&world);
         let base = runtime.base.clone();
         let world = world.clone();
@@ -534,13 +539,9 @@ fn start_xbee(
                 ..XBeeEmulatorConfig::default()
             },
         );
-        let stop = runtime.emulators.clone();
-        runtime.tasks.push(tokio::spawn(async move {
-            tokio::select! {
-                () = stop.cancelled() => {}
-                r = emulator.serve(master) => if let Err(e) = r { tracing::warn!(error = %e, "XBee emulator ended") },
-            }
-        }));
+        runtime.serve_until_stopped("XBee emulator ended", async move {
+            emulator.serve(master).await
+        });
         tracing::info!(device = %device.name, link = %link.describe(), scenario = %scenario.spec.name, beacons = scenario.world.beacons.len(), "emulated XBee coordinator on a pty");
         device.link = Some(link);
         runtime._slaves.push(slave);
@@ -586,11 +587,7 @@ fn start_emitter_receivers(
             AntennaSide::Back => 2,
             AntennaSide::Right => 3,
         };
-        let mode = if x.api_mode == 1 {
-            ApiMode::Unescaped
-        } else {
-            ApiMode::Escaped
-        };
+        let mode = x.mode();
         let base = runtime.base.clone();
         let (world, sensors) = (Arc::clone(&world), Arc::clone(&sensors));
         let rssi: RssiFn = Arc::new(move |_| {
@@ -616,13 +613,9 @@ fn start_emitter_receivers(
                 ..XBeeEmulatorConfig::default()
             },
         );
-        let stop = runtime.emulators.clone();
-        runtime.tasks.push(tokio::spawn(async move {
-            tokio::select! {
-                () = stop.cancelled() => {}
-                r = emulator.serve(master) => if let Err(e) = r { tracing::warn!(error = %e, "XBee emulator ended") },
-            }
-        }));
+        runtime.serve_until_stopped("XBee emulator ended", async move {
+            emulator.serve(master).await
+        });
         tracing::info!(device = %device.name, antenna = ?side, link = %link.describe(), "emulated emitter receiver on a pty");
         device.link = Some(link);
         runtime._slaves.push(slave);

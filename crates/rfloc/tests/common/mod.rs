@@ -159,6 +159,28 @@ impl Daemon {
         let log = self.log.take().unwrap().join().unwrap();
         (status, log)
     }
+
+    /// Stops the daemon and fails the test with `what` and the last 40 lines of its log.
+    pub async fn fail_with_log_tail(self, what: &str) -> ! {
+        let (_, log) = self.terminate_or_collect().await;
+        let tail: Vec<&str> = log.lines().rev().take(40).collect();
+        panic!(
+            "{what}; log tail:\n{}",
+            tail.into_iter().rev().collect::<Vec<_>>().join("\n")
+        );
+    }
+}
+
+/// The next line of a pose stream before `deadline`; `None` when the stream ended, failed or
+/// the time ran out.
+pub async fn next_line_before(
+    lines: &mut Lines<BufReader<TcpStream>>,
+    deadline: tokio::time::Instant,
+) -> Option<String> {
+    match tokio::time::timeout_at(deadline, lines.next_line()).await {
+        Ok(Ok(Some(line))) => Some(line),
+        _ => None,
+    }
 }
 
 /// `key=value` of the last log line containing `needle`.
