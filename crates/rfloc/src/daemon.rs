@@ -178,7 +178,7 @@ pub fn backoff(attempt: u32) -> Duration {
 }
 
 /// Runs until SIGTERM/SIGINT (or the simulation's duration).
-pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
+pub async fn run(cfg: RobotConfig, opts: RunOptions) -> anyhow::Result<()> {
     let stop = CancellationToken::new();
     spawn_signal_handler(stop.clone());
     let capture_dir = opts
@@ -319,6 +319,9 @@ pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
             tokio::time::Instant::now() + Duration::from_secs_f64(d / time_scale.max(1e-6))
         });
 
+    let mut echo = StdoutEcho {
+        on: opts.stdout || cfg.pose.stdout,
+    };
     let estimator_span = tracing::info_span!("estimator", pipeline = cfg.estimator.name());
     async {
         loop {
@@ -363,10 +366,7 @@ pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
             for target in estimator.take_targets() {
                 match message::target_json(&target, SystemTime::now(), &fmt) {
                     Ok(line) => {
-                        if (opts.stdout || cfg.pose.stdout) && !print_line(&line) {
-                            opts.stdout = false;
-                            cfg.pose.stdout = false;
-                        }
+                        echo.print(&line);
                         hub.publish_target(line);
                     }
                     Err(e) => tracing::warn!(error = %e, "target not published"),
@@ -381,11 +381,7 @@ pub async fn run(cfg: RobotConfig, mut opts: RunOptions) -> anyhow::Result<()> {
                 }
                 match message::pose_json(&est, SystemTime::now(), &fmt) {
                     Ok(line) => {
-                        if (opts.stdout || cfg.pose.stdout) && !print_line(&line) {
-                            // stdout closed (e.g. piped into `head`): stop printing, keep running.
-                            opts.stdout = false;
-                            cfg.pose.stdout = false;
-                        }
+                        echo.print(&line);
                         hub.publish_pose(line);
                     }
                     Err(e) => {
@@ -441,6 +437,20 @@ fn route(
 }
 
 /// Prints one line on stdout; false when stdout is gone.
+/// POSE and TARGET lines on stdout, when asked for; off for good once stdout is closed (e.g.
+/// piped into `head`), while the daemon keeps running.
+struct StdoutEcho {
+    on: bool,
+}
+
+impl StdoutEcho {
+    fn print(&mut self, line: &str) {
+        if self.on && !print_line(line) {
+            self.on = false;
+        }
+    }
+}
+
 fn print_line(line: &str) -> bool {
     use std::io::Write;
     let mut out = std::io::stdout().lock();

@@ -257,15 +257,7 @@ impl EmitterPipeline {
                 );
             } else {
                 // The estimate moved off and the robot followed: later arrivals at debug.
-                tracing::debug!(
-                    t,
-                    arrivals,
-                    robot_x = pose.x,
-                    robot_y = pose.y,
-                    emitter_x = x,
-                    emitter_y = y,
-                    "arrived at the emitter again"
-                );
+                tracing::debug!(t, arrivals, "arrived at the emitter again");
             }
         }
         self.arrived = arrived;
