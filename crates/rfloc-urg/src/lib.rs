@@ -1,0 +1,24 @@
+//! Hokuyo URG laser range finder (URG-04LX and kin) speaking SCIP 2.0: a sans-IO codec, an
+//! async client and an emulator.
+//!
+//! - [`encoding`]: the 2/3/4-character encodings and the line check sum.
+//! - [`Command`] → bytes; bytes → [`Reply`] through [`ReplyDecoder`], which resynchronises at
+//!   the next empty line after a damaged reply; [`Scan::from_reply`] reads `GD` data.
+//! - [`UrgClient`] over any `AsyncRead + AsyncWrite` (a USB-CDC serial port on a robot).
+//! - [`UrgEmulator`] answers `BM`, `QT` and `GD` with ranges from a function of the angle.
+#![forbid(unsafe_code)]
+
+pub mod client;
+pub mod command;
+pub mod emulator;
+pub mod encoding;
+pub mod error;
+pub mod reply;
+pub mod scan;
+
+pub use client::{UrgClient, UrgConfig};
+pub use command::Command;
+pub use emulator::{ClockFn, EmulatorConfig, EmulatorStats, RangeFn, UrgEmulator};
+pub use error::ScipError;
+pub use reply::{DecodeStats, Reply, ReplyDecoder};
+pub use scan::{Scan, UrgGeometry};

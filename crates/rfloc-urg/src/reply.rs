@@ -1,0 +1,278 @@
+//! Sensor → host replies, sans-IO: bytes in, [`Reply`]s out.
+//!
+//! A reply is a run of LF-terminated lines closed by an empty line (LF LF): the echo of the
+//! command, a status line (two characters and a sum), then for a distance command that
+//! succeeded a time stamp line (four characters and a sum) and data lines of up to 64
+//! characters, each with its sum. [`ReplyDecoder`] cuts the stream at the empty lines, so a
+//! damaged reply costs only itself: its bytes are dropped, counted and returned in the error,
+//! and decoding goes on with the next reply.
+
+use crate::encoding::{decode, verify_line};
+use crate::error::ScipError;
+
+/// One reply, its lines checked.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Reply {
+    /// The echoed command line.
+    pub echo: Vec<u8>,
+    /// The two status characters (`00` success; `99` for continuous data).
+    pub status: [u8; 2],
+    /// The sensor's millisecond time stamp (24 bits), for distance data.
+    pub timestamp_ms: Option<u32>,
+    /// The data characters of all data lines, sums removed, in order.
+    pub data: Vec<u8>,
+}
+
+impl Reply {
+    /// Whether the status is success (`00`, or `99` for continuous data).
+    #[must_use]
+    pub fn ok(&self) -> bool {
+        matches!(&self.status, b"00" | b"99")
+    }
+
+    /// Parses the lines of one reply (without the closing empty line).
+    ///
+    /// # Errors
+    /// Check sum mismatches and malformed lines, with the offending bytes.
+    pub fn parse(lines: &[&[u8]]) -> Result<Self, ScipError> {
+        let whole = || lines.join(&b'\n');
+        let (echo, rest) = lines.split_first().ok_or_else(|| ScipError::Malformed {
+            why: "empty reply",
+            bytes: Vec::new(),
+        })?;
+        let (status_line, rest) = rest.split_first().ok_or_else(|| ScipError::Malformed {
+            why: "no status line",
+            bytes: whole(),
+        })?;
+        let status = match verify_line(status_line)? {
+            [a, b] => [*a, *b],
+            _ => {
+                return Err(ScipError::Malformed {
+                    why: "status is not two characters",
+                    bytes: whole(),
+                })
+            }
+        };
+        let distance = echo.starts_with(b"GD")
+            || echo.starts_with(b"GS")
+            || echo.starts_with(b"MD")
+            || echo.starts_with(b"MS");
+        let mut reply = Reply {
+            echo: echo.to_vec(),
+            status,
+            timestamp_ms: None,
+            data: Vec::new(),
+        };
+        if !(distance && reply.ok()) {
+            // Other replies (BM, QT, VV, …) carry text lines rfloc does not read.
+            return Ok(reply);
+        }
+        let (stamp, data_lines) = rest.split_first().ok_or_else(|| ScipError::Malformed {
+            why: "no time stamp line",
+            bytes: whole(),
+        })?;
+        let stamp = verify_line(stamp)?;
+        reply.timestamp_ms = Some(decode(stamp).filter(|_| stamp.len() == 4).ok_or_else(|| {
+            ScipError::Malformed {
+                why: "time stamp is not four characters",
+                bytes: whole(),
+            }
+        })?);
+        for line in data_lines {
+            let payload = verify_line(line)?;
+            if payload.len() > 64 {
+                return Err(ScipError::Malformed {
+                    why: "data line longer than 64 characters",
+                    bytes: line.to_vec(),
+                });
+            }
+            reply.data.extend_from_slice(payload);
+        }
+        Ok(reply)
+    }
+}
+
+/// Counters of a decoder.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct DecodeStats {
+    /// Replies decoded.
+    pub replies: u64,
+    /// Replies dropped (check sums, malformed lines).
+    pub bad_replies: u64,
+    /// Bytes dropped with them, and bytes of overlong runs without an empty line.
+    pub dropped_bytes: u64,
+}
+
+/// Bytes buffered without an empty line before they are given up as garbage.
+pub const MAX_REPLY_BYTES: usize = 16 * 1024;
+
+/// Cuts a byte stream into replies.
+#[derive(Debug, Default)]
+pub struct ReplyDecoder {
+    buf: Vec<u8>,
+    stats: DecodeStats,
+}
+
+impl ReplyDecoder {
+    #[must_use]
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Appends received bytes.
+    pub fn push(&mut self, bytes: &[u8]) {
+        self.buf.extend_from_slice(bytes);
+        if self.buf.len() > MAX_REPLY_BYTES && find_end(&self.buf).is_none() {
+            let dropped = self.buf.len();
+            self.stats.dropped_bytes += dropped as u64;
+            tracing::warn!(dropped, "SCIP stream without a reply end; bytes dropped");
+            self.buf.clear();
+        }
+    }
+
+    /// The next complete reply, if one has arrived; a damaged one as an error (its bytes
+    /// dropped and counted).
+    pub fn next_reply(&mut self) -> Option<Result<Reply, ScipError>> {
+        let (end, after) = find_end(&self.buf)?;
+        let raw: Vec<u8> = self.buf.drain(..after).collect();
+        // Sensors may send CR LF; a stray CR at a line end is not data.
+        let body = raw.get(..end).unwrap_or_default();
+        let lines: Vec<&[u8]> = body
+            .split(|b| *b == b'\n')
+            .map(|l| l.strip_suffix(b"\r").unwrap_or(l))
+            .collect();
+        // Leading empty lines (a lost reply's tail) are skipped.
+        let first = lines
+            .iter()
+            .position(|l| !l.is_empty())
+            .unwrap_or(lines.len());
+        let lines = lines.get(first..).unwrap_or_default();
+        if lines.is_empty() {
+            return self.next_reply();
+        }
+        match Reply::parse(lines) {
+            Ok(r) => {
+                self.stats.replies += 1;
+                Some(Ok(r))
+            }
+            Err(e) => {
+                self.stats.bad_replies += 1;
+                self.stats.dropped_bytes += raw.len() as u64;
+                tracing::warn!(error = %e, dropped = raw.len(), "SCIP reply dropped");
+                Some(Err(e))
+            }
+        }
+    }
+
+    /// Counters so far.
+    #[must_use]
+    pub fn stats(&self) -> DecodeStats {
+        self.stats
+    }
+}
+
+/// Where the first reply ends: (end of its last line, end of the empty line after it). A CR
+/// before the closing LF (CR LF line ends) is accepted.
+fn find_end(buf: &[u8]) -> Option<(usize, usize)> {
+    let lf_lf = buf
+        .windows(2)
+        .position(|w| w == b"\n\n")
+        .map(|i| (i, i + 2));
+    let lf_cr_lf = buf
+        .windows(3)
+        .position(|w| w == b"\n\r\n")
+        .map(|i| (i, i + 3));
+    match (lf_lf, lf_cr_lf) {
+        (Some(a), Some(b)) => Some(if a.0 <= b.0 { a } else { b }),
+        (a, b) => a.or(b),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::encoding::{check_sum, encode};
+
+    /// A GD reply as the manual lays it out, for `ranges` (mm).
+    pub(crate) fn gd_reply(echo: &[u8], stamp: u32, ranges: &[u32]) -> Vec<u8> {
+        let mut out = echo.to_vec();
+        out.extend_from_slice(b"\n00P\n");
+        let t = encode(stamp, 4);
+        out.extend_from_slice(&t);
+        out.push(check_sum(&t));
+        out.push(b'\n');
+        let data: Vec<u8> = ranges.iter().flat_map(|r| encode(*r, 3)).collect();
+        for chunk in data.chunks(64) {
+            out.extend_from_slice(chunk);
+            out.push(check_sum(chunk));
+            out.push(b'\n');
+        }
+        out.push(b'\n');
+        out
+    }
+
+    #[test]
+    fn a_gd_reply_decodes_with_its_time_stamp_and_data() {
+        let bytes = gd_reply(b"GD0044004601", 16_000_000, &[5432, 1234, 20]);
+        let mut d = ReplyDecoder::new();
+        d.push(&bytes);
+        let r = d.next_reply().unwrap().unwrap();
+        assert_eq!(r.echo, b"GD0044004601");
+        assert!(r.ok());
+        assert_eq!(r.timestamp_ms, Some(16_000_000));
+        assert_eq!(r.data, b"1Dh0CB00D".to_vec());
+        assert!(d.next_reply().is_none());
+        assert_eq!(d.stats().replies, 1);
+    }
+
+    #[test]
+    fn a_status_reply_has_no_data() {
+        let mut d = ReplyDecoder::new();
+        d.push(b"BM\n00P\n\nQT\n00P\n\n");
+        let bm = d.next_reply().unwrap().unwrap();
+        assert_eq!((bm.echo.as_slice(), bm.status), (&b"BM"[..], *b"00"));
+        let qt = d.next_reply().unwrap().unwrap();
+        assert_eq!(qt.echo, b"QT");
+    }
+
+    #[test]
+    fn a_damaged_reply_is_dropped_and_the_next_one_decodes() {
+        let mut good = gd_reply(b"GD0044004601", 7, &[1000, 1001, 1002]);
+        let mut bad = good.clone();
+        // Corrupt one data character: its line's sum no longer matches.
+        let pos = bad.len() - 4;
+        bad[pos] ^= 0x01;
+        bad.append(&mut good);
+        let mut d = ReplyDecoder::new();
+        d.push(&bad);
+        assert!(matches!(
+            d.next_reply(),
+            Some(Err(ScipError::CheckSum { .. }))
+        ));
+        assert_eq!(d.next_reply().unwrap().unwrap().timestamp_ms, Some(7));
+        let s = d.stats();
+        assert_eq!((s.replies, s.bad_replies), (1, 1));
+        assert!(s.dropped_bytes > 0);
+    }
+
+    #[test]
+    fn garbage_without_a_reply_end_is_bounded() {
+        let mut d = ReplyDecoder::new();
+        d.push(&vec![b'x'; MAX_REPLY_BYTES + 1]);
+        assert!(d.next_reply().is_none());
+        assert_eq!(d.stats().dropped_bytes, (MAX_REPLY_BYTES + 1) as u64);
+        d.push(b"BM\n00P\n\n");
+        assert!(d.next_reply().unwrap().is_ok());
+    }
+
+    #[test]
+    fn an_error_status_is_a_reply_without_data() {
+        let mut d = ReplyDecoder::new();
+        let sum = check_sum(b"10");
+        d.push(&[b"GD0044072501\n10".as_slice(), &[sum, b'\n', b'\n']].concat());
+        let r = d.next_reply().unwrap().unwrap();
+        assert!(!r.ok());
+        assert_eq!(r.status, *b"10");
+        assert!(r.data.is_empty() && r.timestamp_ms.is_none());
+    }
+}
