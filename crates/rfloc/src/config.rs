@@ -74,6 +74,7 @@ pub enum DriverConfig {
     Kts(KtsSettings),
     Alien(AlienSettings),
     Xbee(XbeeSettings),
+    Urg(UrgSettings),
     #[allow(dead_code)] // validated; the GPIO stepper is driven by the EKF-SLAM pipeline only
     Stepper(StepperSettings),
 }
@@ -86,6 +87,7 @@ impl DriverConfig {
             DriverConfig::Kts(_) => "kts",
             DriverConfig::Alien(_) => "alien",
             DriverConfig::Xbee(_) => "xbee",
+            DriverConfig::Urg(_) => "urg",
             DriverConfig::Stepper(_) => "stepper",
         }
     }
@@ -104,6 +106,27 @@ pub struct AriaSettings {
 }
 fn default_pulse() -> f64 {
     1.0
+}
+
+/// A Hokuyo URG laser range finder (SCIP 2.0), scanned with `GD` every `scan_period_s`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct UrgSettings {
+    /// Seconds between scans.
+    #[serde(default = "default_scan_period")]
+    pub scan_period_s: f64,
+    /// Adjacent steps merged into one value (1 = all 682 steps of a URG-04LX).
+    #[serde(default = "default_cluster")]
+    pub cluster: u8,
+    /// The scanner's position ahead of the robot's centre of rotation, metres.
+    #[serde(default)]
+    pub mount_offset_m: f64,
+}
+fn default_scan_period() -> f64 {
+    0.2
+}
+fn default_cluster() -> u8 {
+    1
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -918,6 +941,19 @@ impl RobotConfig {
                             "must be at least 0.01 s".into(),
                         ));
                     }
+                }
+            }
+            if let DriverConfig::Urg(u) = &d.driver {
+                let valid = u.scan_period_s.is_finite()
+                    && u.scan_period_s >= 0.05
+                    && (1..=99).contains(&u.cluster)
+                    && u.mount_offset_m.is_finite();
+                if !valid {
+                    return Err(err(
+                        &format!("device[{i}].driver"),
+                        "scan_period_s must be at least 0.05 s, cluster 1 to 99, mount_offset_m finite"
+                            .into(),
+                    ));
                 }
             }
             if let DriverConfig::Stepper(st) = &d.driver {

@@ -166,6 +166,7 @@ fn capture_device_name(driver: &DriverConfig) -> &'static str {
                 "xbee-api2"
             }
         }
+        DriverConfig::Urg(_) => "hokuyo-urg",
         DriverConfig::Stepper(_) => "stepper-gpio",
     }
 }

@@ -110,6 +110,15 @@ pub async fn replay_lines(
             "kts-rfidm1356" => events.extend(replay_kts(&name, cap.clone()).await?),
             "pioneer-aria" => events.extend(replay_aria(&name, cap.clone()).await?),
             "alien-alr9900" => events.extend(replay_alien(&name, cap)),
+            "hokuyo-urg" => {
+                let offset = cfg.and_then(|c| {
+                    c.devices.iter().find_map(|d| match &d.driver {
+                        DriverConfig::Urg(u) if d.name == name => Some(u.mount_offset_m),
+                        _ => None,
+                    })
+                });
+                events.extend(replay_urg(&name, cap, offset.unwrap_or(0.0)));
+            }
             "xbee-api1" | "xbee-api2" => {
                 let mode = if device == "xbee-api1" {
                     ApiMode::Unescaped
@@ -517,6 +526,46 @@ fn replay_emitter_receiver(
     let dropped = rx.stats().dropped_bytes;
     if unusable > 0 || dropped > 0 {
         tracing::warn!(unusable, dropped, "receiver replay skipped damaged frames");
+    }
+    out
+}
+
+/// Rebuilds a laser task's scans from its capture: every `GD` answer is one
+/// [`DeviceEvent::RangeScan`] at the time its last bytes were read.
+fn replay_urg(name: &str, cap: &Capture, mount_offset_m: f64) -> Vec<DeviceEvent> {
+    let geometry = rfloc_urg::UrgGeometry::default();
+    let mut decoder = rfloc_urg::ReplyDecoder::new();
+    let mut out = Vec::new();
+    let mut unusable = 0u64;
+    for rec in &cap.records {
+        let RecordKind::Rx(bytes) = &rec.kind else {
+            continue;
+        };
+        decoder.push(bytes);
+        while let Some(reply) = decoder.next_reply() {
+            let Ok(reply) = reply else {
+                unusable += 1;
+                continue;
+            };
+            if !reply.echo.starts_with(b"GD") {
+                continue;
+            }
+            match rfloc_urg::Scan::from_reply(&reply) {
+                Ok(scan) => out.push(DeviceEvent::RangeScan {
+                    device: name.to_string(),
+                    t: rec.t(),
+                    beams: crate::devices::urg_scan_beams(&scan, &geometry, mount_offset_m),
+                }),
+                Err(_) => unusable += 1,
+            }
+        }
+    }
+    if unusable > 0 {
+        tracing::warn!(
+            unusable,
+            dropped = decoder.stats().dropped_bytes,
+            "laser replay skipped replies it could not read"
+        );
     }
     out
 }

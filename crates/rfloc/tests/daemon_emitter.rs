@@ -39,23 +39,31 @@ fn pose_of(v: &serde_json::Value) -> (i64, (f64, f64, f64)) {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn emitter_daemon_homes_on_the_emitter_over_four_xbee_receivers() {
     let log = home_on_the_emitter(&[], 90.0).await;
-    assert!(log.contains("simulated laser range finder"), "laser scans");
+    assert!(
+        log.contains("emulated URG laser on a pty"),
+        "the laser on a wire"
+    );
+    assert!(common::logged(&log, "emitter pipeline summary", "scans") > 50.0);
 }
 
 /// Scenario B (a wall across the straight line) with the Pioneer's own sonar ring as the range
-/// sensor: SIP sonar readings over the pty map the wall and keep the robot off it; no
-/// in-process laser runs.
+/// sensor instead of the laser: SIP sonar readings over the pty map the wall and keep the
+/// robot off it.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn emitter_daemon_maps_the_wall_with_the_pioneer_sonar() {
     let log = home_on_the_emitter(
         &[
             ("seed001-a.toml", "seed001-b.toml"),
             ("pulse_period_s = 0.5", "pulse_period_s = 0.5\nsonar = true"),
+            (
+                "[[device]]\nname = \"laser\"\n[device.driver]\nkind = \"urg\"\nscan_period_s = 0.2\n",
+                "",
+            ),
         ],
         230.0,
     )
     .await;
-    assert!(log.contains("no simulated laser"), "sonar, not the laser");
+    assert!(!log.contains("emulated URG laser"), "sonar, not the laser");
 }
 
 /// Runs the daemon on the edited robot file until the robot stands at the emitter, checks the

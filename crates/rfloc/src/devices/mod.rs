@@ -13,11 +13,13 @@ use crate::message::DeviceState;
 mod alien;
 mod aria;
 mod kts;
+mod urg;
 mod xbee;
 mod xbee_receiver;
 
 pub use alien::{average_reads, parse_snapshot_mark, snapshot_mark};
 pub(crate) use aria::sonar_beams;
+pub(crate) use urg::scan_beams as urg_scan_beams;
 pub use xbee::{swept_beacons, AntennaSource, NdRssiProbe, SweepMark, SweepRequest, SweepSetup};
 
 /// A velocity command for the base: (m/s, rad/s).
@@ -51,6 +53,7 @@ pub fn spawn(ctx: DeviceContext, span: tracing::Span, sweep: Option<SweepSetup>)
         }
         DriverConfig::Kts(s) => plain(tokio::spawn(kts::run(ctx, s).instrument(span))),
         DriverConfig::Alien(s) => plain(tokio::spawn(alien::run(ctx, s).instrument(span))),
+        DriverConfig::Urg(s) => plain(tokio::spawn(urg::run(ctx, s).instrument(span))),
         DriverConfig::Xbee(s) if s.role == XbeeRole::EmitterReceiver => {
             plain(tokio::spawn(xbee_receiver::run(ctx, s).instrument(span)))
         }

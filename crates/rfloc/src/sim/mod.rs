@@ -99,8 +99,9 @@ pub struct SimRuntime {
     /// within it: the referee's time, not the robot's belief.
     goal: Option<(rfloc_sim::Point, f64)>,
     goal_reached: Option<f64>,
-    /// The base reports sonar ranges (its settings switch sonar on).
-    base_sonar: bool,
+    /// A device on a wire measures ranges (the base's sonar, a URG laser), so no in-process
+    /// laser is needed.
+    ranges_on_wire: bool,
 }
 
 /// Published poses scored against the emulated robot's true pose.
@@ -284,10 +285,11 @@ pub async fn start(
         sensors: None,
         goal: None,
         goal_reached: None,
-        base_sonar: cfg
-            .devices
-            .iter()
-            .any(|d| matches!(&d.driver, DriverConfig::Aria(a) if a.sonar)),
+        ranges_on_wire: cfg.devices.iter().any(|d| match &d.driver {
+            DriverConfig::Aria(a) => a.sonar,
+            DriverConfig::Urg(_) => true,
+            _ => false,
+        }),
     };
     let start = Pose2::new(sim.start[0], sim.start[1], sim.start[2].to_radians());
     let scenario = match &sim.scenario {
@@ -443,6 +445,47 @@ pub async fn start(
         });
         tracing::info!(device = %device.name, link = %link.describe(), "emulated Alien reader on loopback TCP");
         device.link = Some(link);
+    }
+    for device in cfg
+        .devices
+        .iter_mut()
+        .filter(|d| matches!(d.driver, DriverConfig::Urg(_)))
+    {
+        let DriverConfig::Urg(settings) = &device.driver else {
+            continue;
+        };
+        let world = scenario
+            .as_ref()
+            .map(|s| Arc::new(s.world.clone()))
+            .context("an emulated laser needs [simulation] scenario (its walls)")?;
+        let base = runtime
+            .base
+            .clone()
+            .context("an emulated laser needs an emulated base (its pose)")?;
+        let offset = settings.mount_offset_m;
+        let reach = f64::from(rfloc_urg::UrgGeometry::default().max_mm) / 1000.0;
+        let ranges: rfloc_urg::RangeFn = Arc::new(move |angle| {
+            let p = base.truth();
+            let (x, y) = p.transform_point(offset, 0.0);
+            world
+                .ray_cast(&rfloc_sim::Point::new(x, y), p.theta + angle)
+                .filter(|d| *d <= reach)
+        });
+        let clock = runtime.clock();
+        let emulator = rfloc_urg::UrgEmulator::new(
+            ranges,
+            rfloc_urg::EmulatorConfig {
+                clock: clock.map(|c| Arc::new(move || c.now()) as rfloc_urg::ClockFn),
+                ..rfloc_urg::EmulatorConfig::default()
+            },
+        );
+        let (master, slave, link) = pty_link(115_200)?;
+        runtime.serve_until_stopped("URG laser emulator ended", async move {
+            emulator.serve(master).await
+        });
+        tracing::info!(device = %device.name, link = %link.describe(), "emulated URG laser on a pty");
+        device.link = Some(link);
+        runtime._slaves.push(slave);
     }
     for device in &cfg.devices {
         if matches!(device.driver, DriverConfig::Stepper(_)) {
@@ -634,8 +677,8 @@ impl SimRuntime {
         period_s: f64,
         stop: CancellationToken,
     ) {
-        if self.base_sonar {
-            tracing::info!("the base's sonar ring maps obstacles; no simulated laser");
+        if self.ranges_on_wire {
+            tracing::info!("a range sensor on a link maps obstacles; no in-process laser");
             return;
         }
         let (Some((sensors, world)), Some(base)) = (self.sensors.clone(), self.base.clone()) else {
