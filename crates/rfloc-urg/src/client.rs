@@ -149,3 +149,90 @@ impl<T: AsyncRead + AsyncWrite + Unpin> UrgClient<T> {
             .map_err(|_| ScipError::Timeout(limit))?
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::encoding::{check_sum, encode};
+    use rfloc_transport::MockTransport;
+
+    fn gd_reply(echo: &[u8], ranges: &[u32]) -> Vec<u8> {
+        let mut out = echo.to_vec();
+        out.extend_from_slice(b"\n00P\n");
+        let t = encode(42, 4);
+        out.extend_from_slice(&t);
+        out.push(check_sum(&t));
+        out.push(b'\n');
+        let data: Vec<u8> = ranges.iter().flat_map(|r| encode(*r, 3)).collect();
+        out.extend_from_slice(&data);
+        out.push(check_sum(&data));
+        out.extend_from_slice(b"\n\n");
+        out
+    }
+
+    fn three_step_config() -> UrgConfig {
+        UrgConfig {
+            geometry: UrgGeometry {
+                first_step: 383,
+                last_step: 385,
+                ..UrgGeometry::default()
+            },
+            ..UrgConfig::default()
+        }
+    }
+
+    #[tokio::test]
+    async fn a_late_reply_to_another_command_is_skipped() {
+        // The BM answer arrives only after the GD request: the client skips it and takes the
+        // GD answer that follows.
+        let io = MockTransport::builder()
+            .expect_write(b"GD0383038501\n")
+            .reply(b"BM\n00P\n\n")
+            .reply(gd_reply(b"GD0383038501", &[1000, 2000, 3000]))
+            .build();
+        let mut client = UrgClient::new(io, three_step_config());
+        let scan = client.scan().await.unwrap();
+        assert_eq!(scan.ranges_mm, vec![1000, 2000, 3000]);
+        assert_eq!(scan.timestamp_ms, 42);
+    }
+
+    #[tokio::test]
+    async fn a_damaged_reply_is_dropped_and_no_scan_is_made_up() {
+        let mut bad = gd_reply(b"GD0383038501", &[1000, 2000, 3000]);
+        let at = bad.len() - 4;
+        bad[at] ^= 1;
+        let io = MockTransport::builder()
+            .expect_write(b"GD0383038501\n")
+            .reply(bad)
+            .build();
+        let mut client = UrgClient::new(
+            io,
+            UrgConfig {
+                reply_timeout: Duration::from_millis(50),
+                ..three_step_config()
+            },
+        );
+        // The mock ends after its script: the wait ends with the link, not with a scan.
+        assert!(matches!(
+            client.scan().await,
+            Err(ScipError::Closed | ScipError::Timeout(_))
+        ));
+        assert_eq!(client.stats().bad_replies, 1);
+    }
+
+    #[tokio::test]
+    async fn laser_on_accepts_already_on_and_refuses_trouble() {
+        let io = MockTransport::builder()
+            .expect_write(b"BM\n")
+            .reply(b"BM\n02R\n\n")
+            .expect_write(b"BM\n")
+            .reply([b"BM\n50".as_slice(), &[check_sum(b"50")], b"\n\n"].concat())
+            .build();
+        let mut client = UrgClient::new(io, UrgConfig::default());
+        client.laser_on().await.unwrap();
+        assert!(matches!(
+            client.laser_on().await,
+            Err(ScipError::Status { status, .. }) if &status == b"50"
+        ));
+    }
+}
