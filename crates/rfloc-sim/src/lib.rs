@@ -12,7 +12,7 @@ pub mod geometry;
 pub mod hf;
 pub mod kinematics;
 pub mod metrics;
-mod noise;
+pub mod noise;
 pub mod pattern;
 pub mod published;
 pub mod recorder;

@@ -464,12 +464,21 @@ pub async fn start(
             .context("an emulated laser needs an emulated base (its pose)")?;
         let offset = settings.mount_offset_m;
         let reach = f64::from(rfloc_urg::UrgGeometry::default().max_mm) / 1000.0;
+        // The scanner model's range noise (σ = 0.01 m, the URG-04LX data sheet), seeded.
+        let sigma = rfloc_sim::scanner::RangeScanner::default().noise_sigma;
+        let rng = Mutex::new(
+            <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(sim.seed ^ 0x5552_4721),
+        );
         let ranges: rfloc_urg::RangeFn = Arc::new(move |angle| {
             let p = base.truth();
             let (x, y) = p.transform_point(offset, 0.0);
-            world
+            let d = world
                 .ray_cast(&rfloc_sim::Point::new(x, y), p.theta + angle)
-                .filter(|d| *d <= reach)
+                .filter(|d| *d <= reach)?;
+            let noise = rng
+                .lock()
+                .map_or(0.0, |mut r| rfloc_sim::noise::gaussian(&mut *r, sigma));
+            Some((d + noise).max(0.0))
         });
         let clock = runtime.clock();
         let emulator = rfloc_urg::UrgEmulator::new(
