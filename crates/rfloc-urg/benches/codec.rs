@@ -2,29 +2,16 @@
 #![allow(clippy::unwrap_used, missing_docs)]
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use rfloc_urg::encoding::{check_sum, encode};
-use rfloc_urg::{ReplyDecoder, Scan};
+use rfloc_urg::{Reply, ReplyDecoder, Scan};
 
 /// 100 `GD0044072501` replies as the sensor sends them.
 fn replies() -> Vec<u8> {
-    let mut out = Vec::new();
-    for k in 0..100u32 {
-        out.extend_from_slice(b"GD0044072501\n00P\n");
-        let t = encode(k * 100, 4);
-        out.extend_from_slice(&t);
-        out.push(check_sum(&t));
-        out.push(b'\n');
-        let data: Vec<u8> = (0..682u32)
-            .flat_map(|i| encode(500 + (i * 7 + k) % 5000, 3))
-            .collect();
-        for chunk in data.chunks(64) {
-            out.extend_from_slice(chunk);
-            out.push(check_sum(chunk));
-            out.push(b'\n');
-        }
-        out.push(b'\n');
-    }
-    out
+    (0..100u32)
+        .flat_map(|k| {
+            let ranges: Vec<u32> = (0..682u32).map(|i| 500 + (i * 7 + k) % 5000).collect();
+            Reply::distance(b"GD0044072501", k * 100, &ranges).to_bytes()
+        })
+        .collect()
 }
 
 fn bench(c: &mut Criterion) {

@@ -153,21 +153,11 @@ impl<T: AsyncRead + AsyncWrite + Unpin> UrgClient<T> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::encoding::{check_sum, encode};
+    use crate::encoding::check_sum;
     use rfloc_transport::MockTransport;
 
     fn gd_reply(echo: &[u8], ranges: &[u32]) -> Vec<u8> {
-        let mut out = echo.to_vec();
-        out.extend_from_slice(b"\n00P\n");
-        let t = encode(42, 4);
-        out.extend_from_slice(&t);
-        out.push(check_sum(&t));
-        out.push(b'\n');
-        let data: Vec<u8> = ranges.iter().flat_map(|r| encode(*r, 3)).collect();
-        out.extend_from_slice(&data);
-        out.push(check_sum(&data));
-        out.extend_from_slice(b"\n\n");
-        out
+        Reply::distance(echo, 42, ranges).to_bytes()
     }
 
     fn three_step_config() -> UrgConfig {

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 
-use crate::encoding::{check_sum, encode};
+use crate::reply::Reply;
 use crate::scan::UrgGeometry;
 
 /// The range seen along a beam `angle` radians from straight ahead (counter-clockwise), metres;
@@ -132,7 +132,7 @@ impl UrgEmulator {
             .as_ref()
             .map_or_else(|| self.started.elapsed().as_secs_f64(), |c| c());
         let stamp = ((now_s * 1000.0).max(0.0) as u64 % (1 << 24)) as u32;
-        let mut data = Vec::new();
+        let mut ranges = Vec::new();
         let mut step = start;
         while step <= end {
             let last = (step + cluster - 1).min(end);
@@ -140,21 +140,10 @@ impl UrgEmulator {
                 .map(|s| self.range_mm(f64::from(s)))
                 .min()
                 .unwrap_or(0);
-            data.extend(encode(value, 3));
+            ranges.push(value);
             step = last + 1;
         }
-        let mut out = status_reply_head(line, b"00");
-        let t = encode(stamp, 4);
-        out.extend_from_slice(&t);
-        out.push(check_sum(&t));
-        out.push(b'\n');
-        for chunk in data.chunks(64) {
-            out.extend_from_slice(chunk);
-            out.push(check_sum(chunk));
-            out.push(b'\n');
-        }
-        out.push(b'\n');
-        out
+        Reply::distance(line, stamp, &ranges).to_bytes()
     }
 
     /// The range of `step` in mm; 0 (the URG-04LX's "no echo in range" code) when nothing is
@@ -175,17 +164,12 @@ impl UrgEmulator {
     }
 }
 
-fn status_reply_head(echo: &[u8], status: &[u8; 2]) -> Vec<u8> {
-    let mut out = echo.to_vec();
-    out.push(b'\n');
-    out.extend_from_slice(status);
-    out.push(check_sum(status));
-    out.push(b'\n');
-    out
-}
-
 fn status_reply(echo: &[u8], status: &[u8; 2]) -> Vec<u8> {
-    let mut out = status_reply_head(echo, status);
-    out.push(b'\n');
-    out
+    Reply {
+        echo: echo.to_vec(),
+        status: *status,
+        timestamp_ms: None,
+        data: Vec::new(),
+    }
+    .to_bytes()
 }

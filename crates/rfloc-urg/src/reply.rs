@@ -7,7 +7,7 @@
 //! damaged reply costs only itself: its bytes are dropped, counted and returned in the error,
 //! and decoding goes on with the next reply.
 
-use crate::encoding::{decode, verify_line};
+use crate::encoding::{check_sum, decode, encode, verify_line};
 use crate::error::ScipError;
 
 /// One reply, its lines checked.
@@ -24,6 +24,42 @@ pub struct Reply {
 }
 
 impl Reply {
+    /// A successful distance reply to `echo` carrying `ranges_mm` (three characters each).
+    #[must_use]
+    pub fn distance(echo: &[u8], timestamp_ms: u32, ranges_mm: &[u32]) -> Self {
+        Self {
+            echo: echo.to_vec(),
+            status: *b"00",
+            timestamp_ms: Some(timestamp_ms),
+            data: ranges_mm.iter().flat_map(|r| encode(*r, 3)).collect(),
+        }
+    }
+
+    /// The reply as the sensor sends it: the echo, the status with its sum, for distance data
+    /// the time stamp and the data in lines of 64 characters, each with its sum, and the
+    /// closing empty line.
+    #[must_use]
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut out = self.echo.clone();
+        out.push(b'\n');
+        out.extend_from_slice(&self.status);
+        out.push(check_sum(&self.status));
+        out.push(b'\n');
+        if let Some(stamp) = self.timestamp_ms {
+            let t = encode(stamp, 4);
+            out.extend_from_slice(&t);
+            out.push(check_sum(&t));
+            out.push(b'\n');
+            for chunk in self.data.chunks(64) {
+                out.extend_from_slice(chunk);
+                out.push(check_sum(chunk));
+                out.push(b'\n');
+            }
+        }
+        out.push(b'\n');
+        out
+    }
+
     /// Whether the status is success (`00`, or `99` for continuous data).
     #[must_use]
     pub fn ok(&self) -> bool {
@@ -191,24 +227,11 @@ fn find_end(buf: &[u8]) -> Option<(usize, usize)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::encoding::{check_sum, encode};
+    use crate::encoding::check_sum;
 
     /// A GD reply as the manual lays it out, for `ranges` (mm).
-    pub(crate) fn gd_reply(echo: &[u8], stamp: u32, ranges: &[u32]) -> Vec<u8> {
-        let mut out = echo.to_vec();
-        out.extend_from_slice(b"\n00P\n");
-        let t = encode(stamp, 4);
-        out.extend_from_slice(&t);
-        out.push(check_sum(&t));
-        out.push(b'\n');
-        let data: Vec<u8> = ranges.iter().flat_map(|r| encode(*r, 3)).collect();
-        for chunk in data.chunks(64) {
-            out.extend_from_slice(chunk);
-            out.push(check_sum(chunk));
-            out.push(b'\n');
-        }
-        out.push(b'\n');
-        out
+    fn gd_reply(echo: &[u8], stamp: u32, ranges: &[u32]) -> Vec<u8> {
+        Reply::distance(echo, stamp, ranges).to_bytes()
     }
 
     #[test]
@@ -223,6 +246,21 @@ mod tests {
         assert_eq!(r.data, b"1Dh0CB00D".to_vec());
         assert!(d.next_reply().is_none());
         assert_eq!(d.stats().replies, 1);
+    }
+
+    #[test]
+    fn replies_are_written_as_the_manual_lays_them_out() {
+        // Steps 44–46: 5432, 1234 and 20 mm at 16 000 000 ms. Sums by hand: `m2@0` adds up to
+        // 0x10F, low 6 bits 0x0F + 0x30 = `?`; `1Dh0CB00D` to 0x236, 0x36 + 0x30 = `f`.
+        let bytes = gd_reply(b"GD0044004601", 16_000_000, &[5432, 1234, 20]);
+        assert_eq!(bytes, b"GD0044004601\n00P\nm2@0?\n1Dh0CB00Df\n\n".to_vec());
+        let status = Reply {
+            echo: b"BM".to_vec(),
+            status: *b"02",
+            timestamp_ms: None,
+            data: Vec::new(),
+        };
+        assert_eq!(status.to_bytes(), b"BM\n02R\n\n".to_vec());
     }
 
     #[test]

@@ -3,25 +3,13 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use proptest::prelude::*;
-use rfloc_urg::encoding::{check_sum, decode, encode};
-use rfloc_urg::{ReplyDecoder, Scan};
+use rfloc_urg::encoding::{decode, encode};
+use rfloc_urg::{Reply, ReplyDecoder, Scan};
 
 /// A GD reply for steps `start..start+len-1`, cluster 1, as a sensor sends it.
 fn gd_reply(start: u16, ranges: &[u32], stamp: u32) -> Vec<u8> {
     let end = start + u16::try_from(ranges.len()).unwrap() - 1;
-    let mut out = format!("GD{start:04}{end:04}01\n00P\n").into_bytes();
-    let t = encode(stamp, 4);
-    out.extend_from_slice(&t);
-    out.push(check_sum(&t));
-    out.push(b'\n');
-    let data: Vec<u8> = ranges.iter().flat_map(|r| encode(*r, 3)).collect();
-    for chunk in data.chunks(64) {
-        out.extend_from_slice(chunk);
-        out.push(check_sum(chunk));
-        out.push(b'\n');
-    }
-    out.push(b'\n');
-    out
+    Reply::distance(format!("GD{start:04}{end:04}01").as_bytes(), stamp, ranges).to_bytes()
 }
 
 proptest! {
@@ -32,6 +20,22 @@ proptest! {
         prop_assert_eq!(chars.len(), width);
         prop_assert!(chars.iter().all(|c| (0x30..0x70).contains(c)));
         prop_assert_eq!(decode(&chars), Some(masked));
+    }
+
+    #[test]
+    fn replies_round_trip_through_bytes(
+        ranges in proptest::collection::vec(0u32..(1 << 18), 0..300),
+        stamp in 0u32..(1 << 24),
+        status in prop_oneof![Just(*b"00"), Just(*b"10"), Just(*b"02")],
+    ) {
+        let mut reply = Reply::distance(b"GD0044072501", stamp, &ranges);
+        if status != *b"00" {
+            // Error statuses carry neither time stamp nor data.
+            reply = Reply { status, timestamp_ms: None, data: Vec::new(), ..reply };
+        }
+        let mut d = ReplyDecoder::new();
+        d.push(&reply.to_bytes());
+        prop_assert_eq!(d.next_reply().unwrap().unwrap(), reply);
     }
 
     #[test]
