@@ -9,11 +9,15 @@
 //!   pose composed with the client's odometry; wheel slip is off (see `run`), so odometry
 //!   matches the truth up to the SIP's quantisation (1 mm, 0.09°), also where a wall stops the
 //!   body.
-//! - The **four 915 MHz receivers, the laser range finder and the bumpers** are read
-//!   in-process from `rfloc-sim`'s models at the emulator's *true* pose after the tick being
-//!   processed (the seed gives them no wire protocol; `rfloc run` puts the receivers on XBee
-//!   links and can use the Pioneer's sonar and bumper bits instead). What they read goes to
-//!   the daemon's `EmitterPipeline` as device events, so the trial runs the daemon's pipeline.
+//! - The **laser** is the `rfloc-urg` emulator on a second pty, read through the real
+//!   `UrgClient` (`GD` once per control step, while the clock stands) and recorded into
+//!   `laser.cap`; its ranges are ray-cast at the emulator's *true* pose with the scenario
+//!   scanner's noise from a stream of the trial seed.
+//! - The **four 915 MHz receivers and the bumpers** are read in-process from `rfloc-sim`'s
+//!   models at the true pose after the tick being processed (the seed gives the receivers no
+//!   wire protocol; `rfloc run` puts them on XBee links and reads the Pioneer's bumper bits).
+//!   Everything read goes to the daemon's `EmitterPipeline` as device events, so the trial
+//!   runs the daemon's pipeline.
 //!
 //! Choices the seed leaves open, made here (constants in `run` and `homing`):
 //! - `A1`/`A2` come from a least-squares calibration against the simulated receivers in an

@@ -28,6 +28,7 @@ use rfloc_emitter::{NavigatorConfig, OccupancyGridConfig, ParticleFilterConfig, 
 use rfloc_pose::Pose2;
 use rfloc_sim::{Point, Scenario, SensorSuite};
 use rfloc_transport::{CaptureSink, LinkConfig, Recorder, SharedClock};
+use rfloc_urg::{UrgClient, UrgConfig};
 
 use super::calibration::calibrate;
 use crate::config::AntennaSide;
@@ -174,7 +175,11 @@ pub async fn run_system(spec: &RunSpec<'_>) -> anyhow::Result<RunOutcome> {
         }
     });
     let clock: SharedClock = Arc::new(EmulatorClock(handle.clone()));
+    let scanner = SensorSuite::for_trial(scenario, spec.trial).scanner;
+    let (laser_task, laser_slave, laser_link) =
+        start_laser(Arc::clone(&world), handle.clone(), &clock, &scanner, seed)?;
     let result = async {
+        let mut laser = connect_laser(spec, &laser_link, &clock, scanner.mount_offset).await?;
         let (base, sink) = connect(spec, &link, control, handle, &clock).await?;
         let mission = Mission {
             world: &world,
@@ -184,21 +189,147 @@ pub async fn run_system(spec: &RunSpec<'_>) -> anyhow::Result<RunOutcome> {
             goal,
             emitter,
         };
-        let out = mission.drive(spec, &base).await;
-        // Stop and close whatever happened, then write the capture's last record.
+        let out = mission.drive(spec, &base, &mut laser).await;
+        // Stop and close whatever happened, then write the captures' last records.
         if out.is_ok() {
             base.set_velocity(0.0, 0.0).await?;
         }
         base.shutdown().await;
+        if let Err(e) = laser.client.laser_off().await {
+            tracing::warn!(error = %e, "laser off failed");
+        }
         sink.flush()
             .with_context(|| format!("flushing {}", spec.capture.display()))?;
+        laser
+            .sink
+            .flush()
+            .with_context(|| format!("flushing {}", laser_capture(&spec.capture).display()))?;
         out
     }
     .await;
     task.abort();
     let _ = task.await;
+    laser_task.abort();
+    let _ = laser_task.await;
     drop(slave);
+    drop(laser_slave);
     result
+}
+
+/// The trial's laser: the daemon's URG driver against the URG emulator on a pty, recorded.
+struct TrialLaser {
+    client: UrgClient<Recorder<rfloc_transport::Transport>>,
+    sink: CaptureSink,
+    mount_offset_m: f64,
+}
+
+impl TrialLaser {
+    /// One `GD` scan as the daemon's URG task turns it into beams.
+    async fn beams(&mut self) -> anyhow::Result<Vec<ScanBeam>> {
+        let scan = self.client.scan().await.context("laser scan")?;
+        Ok(crate::devices::urg_scan_beams(
+            &scan,
+            &self.client.config().geometry,
+            self.mount_offset_m,
+        ))
+    }
+}
+
+/// The laser capture next to a run's Pioneer capture (`pioneer*.cap` → `laser*.cap`).
+fn laser_capture(pioneer: &Path) -> PathBuf {
+    let name = pioneer
+        .file_name()
+        .and_then(|f| f.to_str())
+        .unwrap_or("pioneer.cap")
+        .replacen("pioneer", "laser", 1);
+    pioneer.with_file_name(name)
+}
+
+/// A URG emulator on a pty whose beams ray-cast `world` from the scanner's pose at the
+/// emulated robot's true pose, with the scenario scanner's range noise from a stream of the
+/// trial seed. Drawn only while the trial's clock stands (one scan per control step), so the
+/// draws are a function of the trial.
+fn start_laser(
+    world: Arc<rfloc_sim::World>,
+    robot: EmulatorHandle,
+    clock: &SharedClock,
+    scanner: &rfloc_sim::scanner::RangeScanner,
+    seed: u64,
+) -> anyhow::Result<(
+    tokio::task::JoinHandle<()>,
+    tokio_serial::SerialStream,
+    LinkConfig,
+)> {
+    let (offset, sigma) = (scanner.mount_offset, scanner.noise_sigma);
+    let reach = scanner.max_range;
+    let rng = std::sync::Mutex::new(
+        <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(seed ^ 0x4C41_5345_52),
+    );
+    let ranges: rfloc_urg::RangeFn = Arc::new(move |angle| {
+        let p = robot.truth();
+        let (x, y) = p.transform_point(offset, 0.0);
+        let d = world
+            .ray_cast(&Point::new(x, y), p.theta + angle)
+            .filter(|d| *d <= reach)?;
+        let noise = rng
+            .lock()
+            .map_or(0.0, |mut r| rfloc_sim::noise::gaussian(&mut *r, sigma));
+        Some((d + noise).max(0.0))
+    });
+    let clock = Arc::clone(clock);
+    let emulator = rfloc_urg::UrgEmulator::new(
+        ranges,
+        rfloc_urg::EmulatorConfig {
+            clock: Some(Arc::new(move || clock.now())),
+            ..rfloc_urg::EmulatorConfig::default()
+        },
+    );
+    let (master, slave, link) = crate::sim::pty_link(115_200)?;
+    let task = tokio::spawn(async move {
+        if let Err(e) = emulator.serve(master).await {
+            tracing::debug!(error = %e, "URG emulator ended");
+        }
+    });
+    Ok((task, slave, link))
+}
+
+/// Opens the laser's pty by path, records it next to the Pioneer capture and switches the
+/// laser on.
+async fn connect_laser(
+    spec: &RunSpec<'_>,
+    link: &LinkConfig,
+    clock: &SharedClock,
+    mount_offset_m: f64,
+) -> anyhow::Result<TrialLaser> {
+    let path = laser_capture(&spec.capture);
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let file = path
+        .file_name()
+        .and_then(|f| f.to_str())
+        .context("laser capture path has no file name")?;
+    let note = format!(
+        "simulated URG laser (rfloc-urg emulator) for {} trial {}; times are the emulator's simulated seconds",
+        spec.scenario.spec.name, spec.trial
+    );
+    let sink = trial_capture(
+        dir,
+        file,
+        "hokuyo-urg",
+        link,
+        Arc::clone(clock),
+        &[note.as_str()],
+    )?;
+    sink.set_coalescing(true);
+    let io = rfloc_transport::open(link)
+        .await
+        .with_context(|| format!("opening {}", link.describe()))?;
+    let mut client = UrgClient::new(Recorder::new(io, sink.clone()), UrgConfig::default());
+    client.laser_on().await.context("switching the laser on")?;
+    Ok(TrialLaser {
+        client,
+        sink,
+        mount_offset_m,
+    })
 }
 
 /// Opens the pty's slave side by path, records it (same-time chunks coalesced) and connects
@@ -260,10 +391,14 @@ struct Mission<'a> {
 impl Mission<'_> {
     /// The closed loop, one tick at a time, until the referee sees the goal reached, the
     /// robot has believed it arrived for [`ARRIVED_HOLD_S`], or the scenario's time is up.
-    async fn drive(&self, spec: &RunSpec<'_>, base: &LockstepBase) -> anyhow::Result<RunOutcome> {
+    async fn drive(
+        &self,
+        spec: &RunSpec<'_>,
+        base: &LockstepBase,
+        laser: &mut TrialLaser,
+    ) -> anyhow::Result<RunOutcome> {
         let scenario = spec.scenario;
         let mut sensors = SensorSuite::for_trial(scenario, spec.trial);
-        let max_range = sensors.scanner.max_range;
         // The daemon's pipeline, fed the device events a robot would send: control steps on
         // the odometry of every CONTROL_TICKS-th tick, each reading used only in its own step.
         let mut pipeline = EmitterPipeline::from_homing(
@@ -309,7 +444,7 @@ impl Mission<'_> {
                     truth,
                     world: self.world,
                     radius: self.radius,
-                    max_range,
+                    beams: laser.beams().await?,
                 };
                 for event in sensed.events(&mut sensors) {
                     pipeline.handle(&event);
@@ -366,19 +501,20 @@ impl Mission<'_> {
 /// tick (the trial reads all four at once).
 const READING_WINDOW_S: f64 = 0.05;
 
-/// The sensors of one control tick, read at the emulator's true pose.
+/// The sensors of one control tick, read at the emulator's true pose, and the tick's laser
+/// scan.
 struct Sensed<'a> {
     t: f64,
     truth: Pose2,
     world: &'a rfloc_sim::World,
     radius: f64,
-    max_range: f64,
+    beams: Vec<ScanBeam>,
 }
 
 impl Sensed<'_> {
-    /// The tick's device events, drawn in a fixed order: the four receivers, then the laser
-    /// (bumpers draw nothing). The 915 MHz receivers and the laser are in-process models at
-    /// the true pose (no wire protocol in these trials); the bumpers are sent every step.
+    /// The tick's device events in a fixed order: the four receivers (in-process models at the
+    /// true pose, drawn from their own stream), the laser scan (read over its pty), the
+    /// bumpers (sent every step).
     fn events(&self, sensors: &mut SensorSuite) -> Vec<DeviceEvent> {
         let (t, truth) = (self.t, self.truth);
         let rss = sensors.emitter_rss(self.world, &truth);
@@ -399,19 +535,10 @@ impl Sensed<'_> {
                 dbm,
             })
             .collect();
-        let beams: Vec<ScanBeam> = sensors
-            .laser_scan(self.world, &truth)
-            .into_iter()
-            .map(|b| ScanBeam {
-                angle_rad: b.angle,
-                range_m: if b.hit { b.range } else { self.max_range },
-                max_range_m: self.max_range,
-            })
-            .collect();
         events.push(DeviceEvent::RangeScan {
             device: "laser".into(),
             t,
-            beams,
+            beams: self.beams.clone(),
         });
         let contact = sensors.bumpers(self.world, &truth, self.radius);
         events.push(DeviceEvent::Bumpers {
