@@ -263,7 +263,7 @@ fn start_laser(
     let (offset, sigma) = (scanner.mount_offset, scanner.noise_sigma);
     let reach = scanner.max_range;
     let rng = std::sync::Mutex::new(
-        <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(seed ^ 0x4C41_5345_52),
+        <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(seed ^ 0x004C_4153_4552),
     );
     let ranges: rfloc_urg::RangeFn = Arc::new(move |angle| {
         let p = robot.truth();
