@@ -169,34 +169,47 @@ impl ReplyDecoder {
     /// The next complete reply, if one has arrived; a damaged one as an error (its bytes
     /// dropped and counted).
     pub fn next_reply(&mut self) -> Option<Result<Reply, ScipError>> {
-        let (end, after) = find_end(&self.buf)?;
-        let raw: Vec<u8> = self.buf.drain(..after).collect();
-        // Sensors may send CR LF; a stray CR at a line end is not data.
-        let body = raw.get(..end).unwrap_or_default();
-        let lines: Vec<&[u8]> = body
-            .split(|b| *b == b'\n')
-            .map(|l| l.strip_suffix(b"\r").unwrap_or(l))
-            .collect();
-        // Leading empty lines (a lost reply's tail) are skipped.
-        let first = lines
-            .iter()
-            .position(|l| !l.is_empty())
-            .unwrap_or(lines.len());
-        let lines = lines.get(first..).unwrap_or_default();
-        if lines.is_empty() {
-            return self.next_reply();
-        }
-        match Reply::parse(lines) {
-            Ok(r) => {
-                self.stats.replies += 1;
-                Some(Ok(r))
+        loop {
+            // Empty lines before a reply (a lost reply's tail) carry nothing: drop them at once,
+            // so a run of line feeds costs one pass, not one pass per pair.
+            let blank = self
+                .buf
+                .iter()
+                .take_while(|b| matches!(b, b'\n' | b'\r'))
+                .count();
+            if blank > 0 {
+                self.buf.drain(..blank);
             }
-            Err(e) => {
-                self.stats.bad_replies += 1;
-                self.stats.dropped_bytes += raw.len() as u64;
-                tracing::warn!(error = %e, dropped = raw.len(), "SCIP reply dropped");
-                Some(Err(e))
+            let (end, after) = find_end(&self.buf)?;
+            let raw: Vec<u8> = self.buf.drain(..after).collect();
+            // Sensors may send CR LF; a stray CR at a line end is not data.
+            let body = raw.get(..end).unwrap_or_default();
+            let lines: Vec<&[u8]> = body
+                .split(|b| *b == b'\n')
+                .map(|l| l.strip_suffix(b"\r").unwrap_or(l))
+                .collect();
+            // Leading empty lines (a lost reply's tail) are skipped; a run of nothing but
+            // empty lines is no reply at all.
+            let first = lines
+                .iter()
+                .position(|l| !l.is_empty())
+                .unwrap_or(lines.len());
+            let lines = lines.get(first..).unwrap_or_default();
+            if lines.is_empty() {
+                continue;
             }
+            return match Reply::parse(lines) {
+                Ok(r) => {
+                    self.stats.replies += 1;
+                    Some(Ok(r))
+                }
+                Err(e) => {
+                    self.stats.bad_replies += 1;
+                    self.stats.dropped_bytes += raw.len() as u64;
+                    tracing::warn!(error = %e, dropped = raw.len(), "SCIP reply dropped");
+                    Some(Err(e))
+                }
+            };
         }
     }
 
@@ -301,6 +314,15 @@ mod tests {
         assert_eq!(d.stats().dropped_bytes, (MAX_REPLY_BYTES + 1) as u64);
         d.push(b"BM\n00P\n\n");
         assert!(d.next_reply().unwrap().is_ok());
+    }
+
+    #[test]
+    fn a_long_run_of_empty_lines_is_skipped_without_recursion() {
+        let mut d = ReplyDecoder::new();
+        d.push(&vec![b'\n'; MAX_REPLY_BYTES - 16]);
+        d.push(b"QT\n00P\n\n");
+        assert_eq!(d.next_reply().unwrap().unwrap().echo, b"QT");
+        assert!(d.next_reply().is_none());
     }
 
     #[test]
