@@ -627,8 +627,65 @@ fn days_from_civil(y: i64, m: i64, d: i64) -> i64 {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::panic)]
 mod tests {
     use super::*;
+
+    fn hex(bytes: &[u8]) -> String {
+        bytes
+            .iter()
+            .map(|b| format!("{b:02X}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    }
+
+    #[test]
+    fn receiver_polls_replay_from_their_db_answers() {
+        // Local DB answer, RSSI byte 0x3C = −60 dBm: 7E 00 06 88 01 44 42 00 3C, checksum
+        // 0xFF − (0x88 + 0x01 + 0x44 + 0x42 + 0x00 + 0x3C = 0x14B → 0x4B) = 0xB4.
+        let local = [0x7E, 0x00, 0x06, 0x88, 0x01, 0x44, 0x42, 0x00, 0x3C, 0xB4];
+        let encoded = XBeeFrame::AtResponse(rfloc_xbee::AtResponse {
+            frame_id: 1,
+            command: AtCommandName::DB,
+            status_byte: 0,
+            data: vec![0x3C],
+        })
+        .encode(ApiMode::Escaped)
+        .unwrap();
+        assert_eq!(encoded, local, "known answer");
+        // The emitter not answering: remote DB with status 4.
+        let unanswered = XBeeFrame::RemoteAtResponse(rfloc_xbee::RemoteAtResponse {
+            frame_id: 2,
+            source: rfloc_xbee::Address64(0x0013_A200_41E0_E001),
+            source16: rfloc_xbee::Address16(0xFFFE),
+            command: AtCommandName::DB,
+            status_byte: 4,
+            data: Vec::new(),
+        })
+        .encode(ApiMode::Escaped)
+        .unwrap();
+        let text = format!(
+            "# rfloc-capture 1\n# device: xbee-api2\n0.200000 rx x:{}\n0.400000 rx x:{}\n0.500000 rx x:7E 00 06 88\n",
+            hex(&local),
+            hex(&unanswered)
+        );
+        let cap = Capture::parse(&text, "rx-left.cap").unwrap();
+        let events = replay_emitter_receiver("rx-left", &cap, ApiMode::Escaped, AntennaSide::Left);
+        let got: Vec<(f64, Option<f64>)> = events
+            .iter()
+            .map(|e| match e {
+                DeviceEvent::EmitterRss {
+                    t,
+                    antenna: AntennaSide::Left,
+                    dbm,
+                    ..
+                } => (*t, *dbm),
+                other => panic!("{other:?}"),
+            })
+            .collect();
+        // The truncated frame at 0.5 s gives nothing.
+        assert_eq!(got, vec![(0.2, Some(-60.0)), (0.4, None)]);
+    }
 
     #[test]
     fn rfc3339_round_trips_through_iso8601() {
