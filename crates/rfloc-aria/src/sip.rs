@@ -572,6 +572,28 @@ mod tests {
     }
 
     #[test]
+    fn example_g_sonar_reaches_the_ring() {
+        // Example G's sonar: disc 0 at 5000 mm (no echo), disc 1 at 1200 mm.
+        let mut d = FrameDecoder::new();
+        d.push(&EXAMPLE_G);
+        let frame = d.next_frame().unwrap().unwrap();
+        let ServerPacket::Motor(sip) = ServerPacket::from_frame(frame).unwrap() else {
+            panic!("not a motor SIP");
+        };
+        let mut ring = crate::sonar::SonarRing::p3dx();
+        assert!(ring.update(&sip, &crate::odometry::ConversionFactors::P3DX_SH));
+        assert_eq!(ring.updated, 0b11);
+        let ranges: Vec<(f64, f64)> = ring.readings().map(|(d, r)| (d.heading_rad, r)).collect();
+        assert_eq!(ranges.len(), 2);
+        assert!(
+            (ranges[0].0 - 90f64.to_radians()).abs() < 1e-12 && (ranges[0].1 - 5.0).abs() < 1e-12
+        );
+        assert!(
+            (ranges[1].0 - 50f64.to_radians()).abs() < 1e-12 && (ranges[1].1 - 1.2).abs() < 1e-12
+        );
+    }
+
+    #[test]
     fn example_g_encodes() {
         assert_eq!(example_g_sip().to_frame().encode().unwrap(), EXAMPLE_G);
     }
