@@ -158,6 +158,13 @@ pub struct PipelineParams {
     /// Seed 001: occupancy grid cell, metres.
     #[serde(default)]
     pub grid_cell_m: Option<f64>,
+    /// Seed 001 particle filter: distance offset `c_r`, metres (the seed's 1 m when absent).
+    /// For experiments beyond the seed's constants.
+    #[serde(default)]
+    pub range_offset_m: Option<f64>,
+    /// Seed 001 particle filter: angle offset `c_θ`, degrees (the seed's 15° when absent).
+    #[serde(default)]
+    pub angle_offset_deg: Option<f64>,
 }
 
 /// A loaded, validated scenario.

@@ -103,9 +103,14 @@ fn homing_config(
         .context("the scenario's world has no emitter")?;
     let rss = calibrate(&scenario.emitter_model(), emitter.power_dbm)?;
     let params = &scenario.spec.params;
+    let seed_filter = ParticleFilterConfig::default();
     let filter = ParticleFilterConfig {
         particle_count: params.particles.unwrap_or(1000),
-        ..ParticleFilterConfig::default()
+        range_offset_m: params.range_offset_m.unwrap_or(seed_filter.range_offset_m),
+        angle_offset_deg: params
+            .angle_offset_deg
+            .unwrap_or(seed_filter.angle_offset_deg),
+        ..seed_filter
     };
     let resolution = params.grid_cell_m.unwrap_or(0.2);
     let cells = (MAP_SIDE_M / resolution).round().max(1.0) as usize;
