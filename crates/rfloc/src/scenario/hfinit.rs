@@ -219,7 +219,6 @@ pub async fn run_trial(
         clock.clone(),
         &[CAPTURE_NOTE],
     )?;
-    base_sink.set_coalescing(true);
     let base_io = Recorder::new(open(&robot_link).await?, base_sink.clone());
     // No wall-time keep-alive or link timeout: the trial commands the robot in simulated time.
     let base_config = AriaClientConfig {
@@ -242,7 +241,6 @@ pub async fn run_trial(
         clock.clone(),
         &[CAPTURE_NOTE],
     )?;
-    reader_sink.set_coalescing(true);
     let reader_io = Recorder::new(open(&reader_link).await?, reader_sink.clone());
     let mut kts = KtsClient::spawn(
         reader_io,

@@ -46,7 +46,8 @@ impl rfloc_transport::Clock for EmulatorClock {
 }
 
 /// Creates the capture of one device link of a simulated trial (`dir/file`), with the link's
-/// description and the given notes in its header.
+/// description and the given notes in its header. Same-time reads (writes) are coalesced into
+/// one record, so a lock-step trial's capture does not depend on how the pty chunked bytes.
 pub fn trial_capture(
     dir: &std::path::Path,
     file: &str,
@@ -71,8 +72,10 @@ pub fn trial_capture_described(
     let mut header = rfloc_capture::Header::new(device, link.to_string());
     header.notes.extend(notes.iter().map(|n| (*n).to_string()));
     let path = dir.join(file);
-    rfloc_transport::CaptureSink::create(&path, &header, clock)
-        .with_context(|| format!("creating capture {}", path.display()))
+    let sink = rfloc_transport::CaptureSink::create(&path, &header, clock)
+        .with_context(|| format!("creating capture {}", path.display()))?;
+    sink.set_coalescing(true);
+    Ok(sink)
 }
 
 /// Running emulators of one simulation.

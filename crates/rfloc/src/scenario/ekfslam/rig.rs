@@ -116,7 +116,6 @@ impl Rig {
                 EMULATOR_TIME_NOTE,
             ],
         )?;
-        base_sink.set_coalescing(true);
 
         // XBee coordinator in the reflector.
         let (master, slave, xbee_link) = crate::sim::pty_link(115_200)?;
@@ -156,7 +155,6 @@ impl Rig {
                 EMULATOR_TIME_NOTE,
             ],
         )?;
-        xbee_sink.set_coalescing(true);
 
         // Drivers, opened by path as the daemon opens its devices.
         let connector_sink = base_sink.clone();

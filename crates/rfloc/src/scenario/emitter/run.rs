@@ -306,35 +306,46 @@ async fn connect_laser(
     clock: &SharedClock,
     mount_offset_m: f64,
 ) -> anyhow::Result<TrialLaser> {
-    let path = laser_capture(&spec.capture);
-    let dir = path.parent().unwrap_or(Path::new("."));
-    let file = path
-        .file_name()
-        .and_then(|f| f.to_str())
-        .context("laser capture path has no file name")?;
     let note = format!(
         "simulated URG laser (rfloc-urg emulator) for {} trial {}; times are the emulator's simulated seconds",
         spec.scenario.spec.name, spec.trial
     );
-    let sink = trial_capture(
-        dir,
-        file,
+    let (io, sink) = open_recorded(
+        &laser_capture(&spec.capture),
         "hokuyo-urg",
         link,
-        Arc::clone(clock),
-        &[note.as_str()],
-    )?;
-    sink.set_coalescing(true);
-    let io = rfloc_transport::open(link)
-        .await
-        .with_context(|| format!("opening {}", link.describe()))?;
-    let mut client = UrgClient::new(Recorder::new(io, sink.clone()), UrgConfig::default());
+        clock,
+        &note,
+    )
+    .await?;
+    let mut client = UrgClient::new(io, UrgConfig::default());
     client.laser_on().await.context("switching the laser on")?;
     Ok(TrialLaser {
         client,
         sink,
         mount_offset_m,
     })
+}
+
+/// Creates the trial capture `path` for `device`, opens `link` by path as the daemon opens its
+/// devices, and records it into the capture (same-time chunks coalesced).
+async fn open_recorded(
+    path: &Path,
+    device: &str,
+    link: &LinkConfig,
+    clock: &SharedClock,
+    note: &str,
+) -> anyhow::Result<(Recorder<rfloc_transport::Transport>, CaptureSink)> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let file = path
+        .file_name()
+        .and_then(|f| f.to_str())
+        .with_context(|| format!("capture path {} has no file name", path.display()))?;
+    let sink = trial_capture(dir, file, device, link, Arc::clone(clock), &[note])?;
+    let io = rfloc_transport::open(link)
+        .await
+        .with_context(|| format!("opening {}", link.describe()))?;
+    Ok((Recorder::new(io, sink.clone()), sink))
 }
 
 /// Opens the pty's slave side by path, records it (same-time chunks coalesced) and connects
@@ -346,36 +357,16 @@ async fn connect(
     handle: EmulatorHandle,
     clock: &SharedClock,
 ) -> anyhow::Result<(LockstepBase, CaptureSink)> {
-    let dir = spec.capture.parent().unwrap_or(Path::new("."));
-    let file = spec
-        .capture
-        .file_name()
-        .and_then(|f| f.to_str())
-        .context("capture path has no file name")?;
     let note = format!(
         "simulated Pioneer (rfloc-aria emulator, lock-step) for {} trial {} ({} system); times are the emulator's simulated seconds",
         spec.scenario.spec.name,
         spec.trial,
         if spec.use_planner { "full" } else { "preliminary" }
     );
-    let sink = trial_capture(
-        dir,
-        file,
-        "pioneer-aria",
-        link,
-        Arc::clone(clock),
-        &[note.as_str()],
-    )?;
-    sink.set_coalescing(true);
-    let io = rfloc_transport::open(link)
+    let (io, sink) = open_recorded(&spec.capture, "pioneer-aria", link, clock, &note).await?;
+    let client = AriaClient::from_stream(io, driver_config(Arc::clone(clock)))
         .await
-        .with_context(|| format!("opening {}", link.describe()))?;
-    let client = AriaClient::from_stream(
-        Recorder::new(io, sink.clone()),
-        driver_config(Arc::clone(clock)),
-    )
-    .await
-    .context("connecting to the emulated Pioneer")?;
+        .context("connecting to the emulated Pioneer")?;
     Ok((
         LockstepBase::new(client, control, handle, sink.clone()),
         sink,

@@ -203,7 +203,6 @@ impl SnapshotRig {
             clock.clone(),
             &[note.as_str()],
         )?;
-        base_sink.set_coalescing(true);
         let base_io = Recorder::new(open(&robot_link).await?, base_sink.clone());
         let base = AriaClient::from_stream(base_io, driver_config(clock.clone()))
             .await
@@ -220,7 +219,6 @@ impl SnapshotRig {
             clock.clone(),
             &[note.as_str()],
         )?;
-        reader_sink.set_coalescing(true);
         let reader_io = Recorder::new(
             open(&reader_link)
                 .await
