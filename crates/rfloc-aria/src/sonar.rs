@@ -69,10 +69,10 @@ pub fn p3dx_discs() -> [SonarDisc; 16] {
 /// Ranges at or above this are "no echo" (the discs reach about 5 m).
 pub const NO_ECHO_M: f64 = 5.0;
 
-/// The latest range of every disc of a ring of up to sixteen (a P3-DX's front and rear arrays).
+/// The latest range of every disc of a P3-DX ring (its sixteen front and rear discs).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SonarRing {
-    discs: [SonarDisc; 16],
+    /// Latest range of each disc, metres, by disc number (the discs are the P3-DX's).
     ranges: [Option<f64>; 16],
     /// Discs the last [`SonarRing::update`] set (bit per disc number).
     pub updated: u16,
@@ -91,7 +91,6 @@ impl SonarRing {
     #[must_use]
     pub fn p3dx() -> Self {
         Self {
-            discs: p3dx_discs(),
             ranges: [None; 16],
             updated: 0,
             unknown_discs: 0,
@@ -115,9 +114,9 @@ impl SonarRing {
     }
 
     /// Each disc with a reading: the disc and its latest range, metres.
-    pub fn readings(&self) -> impl Iterator<Item = (&SonarDisc, f64)> {
-        self.discs
-            .iter()
+    pub fn readings(&self) -> impl Iterator<Item = (SonarDisc, f64)> + '_ {
+        p3dx_discs()
+            .into_iter()
             .zip(&self.ranges)
             .filter_map(|(d, r)| r.map(|r| (d, r)))
     }
