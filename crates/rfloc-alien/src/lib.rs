@@ -19,6 +19,7 @@
 
 mod client;
 mod custom_format;
+#[cfg(feature = "emulator")]
 mod emulator;
 mod error;
 mod format_tracker;
@@ -33,6 +34,7 @@ mod transcript;
 
 pub use client::{AlienClient, AlienConfig, AlienStats, LineEnding, PromptMode};
 pub use custom_format::{CustomFormat, CustomFormatError, FieldKind};
+#[cfg(feature = "emulator")]
 pub use emulator::{EmulatorOptions, ReaderEmulator, TagField};
 pub use error::{AlienError, SessionEnd};
 pub use format_tracker::FormatTracker;

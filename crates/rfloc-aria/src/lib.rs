@@ -15,6 +15,7 @@
 
 pub mod client;
 pub mod command;
+#[cfg(feature = "emulator")]
 pub mod emulator;
 pub mod frame;
 mod mock_base;
@@ -27,6 +28,7 @@ pub use client::{
     Odometry, SCALED_CLOSE_LINGER_FLOOR, SCALED_LINK_TIMEOUT_FLOOR, SCALED_SYNC_TIMEOUT_FLOOR,
 };
 pub use command::{Arg, ArgError, Command, CommandError, CommandLimits, LinkPhase};
+#[cfg(feature = "emulator")]
 pub use emulator::{
     EmulatorConfig, EmulatorError, EmulatorHandle, EmulatorState, MotionHook, RobotEmulator,
     SonarHook, StepControl, WheelSlip,

@@ -17,6 +17,7 @@
 mod client;
 mod codec;
 mod command;
+#[cfg(feature = "emulator")]
 mod emulator;
 mod event;
 mod framing;
@@ -27,6 +28,7 @@ mod uid;
 pub use client::{KtsClient, KtsClientError, KtsConfig, KtsStats, TagEventSource, DEFAULT_BAUD};
 pub use codec::{CodecStats, KtsCodec};
 pub use command::KtsCommand;
+#[cfg(feature = "emulator")]
 pub use emulator::{EmulatorConfig, KtsEmulator, ScanControl, ScanStep, TagGrid, UidScheme};
 pub use event::{TagEvent, TagEventKind};
 pub use framing::{FramedLine, LineFramer, MAX_LINE_LEN};

@@ -10,6 +10,7 @@
 
 pub mod client;
 pub mod command;
+#[cfg(feature = "emulator")]
 pub mod emulator;
 pub mod encoding;
 pub mod error;
@@ -18,6 +19,7 @@ pub mod scan;
 
 pub use client::{UrgClient, UrgConfig};
 pub use command::Command;
+#[cfg(feature = "emulator")]
 pub use emulator::{ClockFn, EmulatorConfig, EmulatorStats, RangeFn, UrgEmulator};
 pub use error::ScipError;
 pub use reply::{DecodeStats, Reply, ReplyDecoder};

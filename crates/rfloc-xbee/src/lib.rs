@@ -43,6 +43,7 @@
 pub mod address;
 pub mod client;
 pub mod codec;
+#[cfg(feature = "emulator")]
 pub mod emulator;
 mod fields;
 pub mod frame;
@@ -56,6 +57,7 @@ pub use client::{
 pub use codec::{
     checksum, encode_frame, ApiMode, DecodeError, DecodeStats, EncodeError, FrameDecoder,
 };
+#[cfg(feature = "emulator")]
 pub use emulator::{Beacon, CoordinatorEmulator, EmulatorConfig, EmulatorStats, RssiFn};
 pub use frame::{
     AtCommand, AtCommandName, AtResponse, AtStatus, ExplicitReceive, Frame, FrameError,
