@@ -167,6 +167,10 @@ pub struct ClientConfig {
     pub close_linger: Duration,
     /// Size of the command queue.
     pub queue: usize,
+    /// With a size, every SIP's odometry also goes into a queue of this size that the client
+    /// task waits on when it is full ([`AriaClient::take_odometry_queue`]): no update is
+    /// skipped, however fast SIPs arrive (a replay). 0: the latest value only (a watch).
+    pub odometry_queue: usize,
 }
 
 impl Default for ClientConfig {
@@ -184,6 +188,7 @@ impl Default for ClientConfig {
             clock: None,
             close_linger: Duration::from_secs(1),
             queue: 32,
+            odometry_queue: 0,
         }
     }
 }
@@ -253,6 +258,7 @@ pub struct AriaClient {
     limits: CommandLimits,
     factors: ConversionFactors,
     task: Option<JoinHandle<()>>,
+    odometry_queue: Option<mpsc::Receiver<Odometry>>,
 }
 
 impl AriaClient {
@@ -278,6 +284,13 @@ impl AriaClient {
         let (tx, rx) = mpsc::channel(config.queue.max(1));
         let (odom_tx, odometry) = watch::channel(Odometry::default());
         let (state_tx, state) = watch::channel(LinkState::Connected(identity.clone()));
+        let (odom_queue, odometry_queue) = match config.odometry_queue {
+            0 => (None, None),
+            n => {
+                let (tx, rx) = mpsc::channel(n);
+                (Some(tx), Some(rx))
+            }
+        };
         let limits = config.limits;
         let worker = Worker {
             config,
@@ -286,6 +299,7 @@ impl AriaClient {
             tracker: OdometryTracker::new(factors),
             sonar: SonarRing::p3dx(),
             odom_tx,
+            odom_queue,
             state_tx,
             rx,
             seq: 0,
@@ -301,7 +315,13 @@ impl AriaClient {
             limits,
             factors,
             task: Some(task),
+            odometry_queue,
         })
+    }
+
+    /// The lossless odometry queue of [`ClientConfig::odometry_queue`] (once).
+    pub fn take_odometry_queue(&mut self) -> Option<mpsc::Receiver<Odometry>> {
+        self.odometry_queue.take()
     }
 
     /// Connects over a single stream; reconnection is not possible (the link is reported lost
@@ -693,6 +713,7 @@ struct Worker {
     tracker: OdometryTracker,
     sonar: SonarRing,
     odom_tx: watch::Sender<Odometry>,
+    odom_queue: Option<mpsc::Sender<Odometry>>,
     state_tx: watch::Sender<LinkState>,
     rx: mpsc::Receiver<Request>,
     seq: u64,
@@ -773,11 +794,12 @@ impl Worker {
         }
     }
 
+    /// Decodes one frame; a motor SIP gives its odometry.
     fn handle_frame(
         &mut self,
         frame: Frame,
         config_waiters: &mut Vec<oneshot::Sender<Result<ConfigPacket, ClientError>>>,
-    ) -> bool {
+    ) -> Option<Odometry> {
         match ServerPacket::from_frame(frame) {
             Ok(ServerPacket::Motor(sip)) => {
                 let s = self.tracker.update(&sip);
@@ -799,7 +821,7 @@ impl Worker {
                     sonar: self.sonar,
                 };
                 let _ = self.odom_tx.send(odo);
-                return true;
+                return Some(odo);
             }
             Ok(ServerPacket::Config(c)) => {
                 for w in config_waiters.drain(..) {
@@ -820,7 +842,7 @@ impl Worker {
                 tracing::warn!(error = %e, "ARIA malformed packet");
             }
         }
-        false
+        None
     }
 
     async fn session<T>(&mut self, mut s: Session<T>) -> SessionEnd
@@ -834,7 +856,12 @@ impl Worker {
             // Frames already buffered (e.g. read during the handshake).
             while let Some(r) = s.decoder.next_frame() {
                 if let Ok(frame) = r {
-                    if self.handle_frame(frame, &mut config_waiters) {
+                    if let Some(odo) = self.handle_frame(frame, &mut config_waiters) {
+                        if let Some(q) = &self.odom_queue {
+                            // Waits while the consumer is behind; a dropped consumer is fine.
+                            let _ = q.send(odo).await;
+                        }
+                        // After delivery: a wait on the consumer is not silence of the robot.
                         s.last_sip = Instant::now();
                     }
                 }

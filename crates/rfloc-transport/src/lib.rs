@@ -9,7 +9,9 @@
 //! - [`Recorder`]: wraps a live link and writes every read and write to a capture file;
 //! - [`replay::Replayer`]: turns a capture back into a link, either streaming the recorded `rx`
 //!   bytes or answering the driver's n-th request with the n-th recorded reply;
-//! - [`Clock`]: where drivers take timestamps from, so a replay can run on the recorded clock.
+//! - [`Clock`]: where drivers take timestamps from, so a replay can run on the recorded clock;
+//! - [`StampedLink`]: every read stamped once on the run clock (and recorded at
+//!   that reading), the time a driver gives the observations it decodes from those bytes.
 #![forbid(unsafe_code)]
 #![deny(clippy::indexing_slicing)]
 
@@ -20,6 +22,7 @@ mod mock;
 mod recorder;
 pub mod replay;
 pub mod serial;
+mod stamp;
 pub mod tcp;
 
 use tokio::io::{AsyncRead, AsyncWrite};
@@ -29,6 +32,7 @@ pub use error::TransportError;
 pub use link::{open, DataBits, FlowControl, LinkConfig, Parity, SerialLink, StopBits, TcpLink};
 pub use mock::{MockTransport, MockTransportBuilder};
 pub use recorder::{CaptureSink, Recorder, REDACTED};
+pub use stamp::{clock_ns, StampedLink};
 
 /// A bidirectional byte stream to a device.
 pub trait DeviceIo: AsyncRead + AsyncWrite + Send + Unpin + std::fmt::Debug {}

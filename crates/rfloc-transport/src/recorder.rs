@@ -158,24 +158,22 @@ impl CaptureSink {
     }
 
     fn now_ns(&self) -> u64 {
-        let t = self.clock.now();
-        if t.is_finite() && t > 0.0 {
-            // Saturating float->int conversion; u64 ns covers 584 years.
-            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-            let ns = (t * 1e9).round() as u64;
-            ns
-        } else {
-            0
-        }
+        crate::stamp::clock_ns(self.clock.as_ref())
     }
 
     /// Records `kind` at the clock's reading and returns that reading in nanoseconds.
     fn record(&self, kind: RecordKind) -> u64 {
         let t = self.now_ns();
-        if let Ok(mut s) = self.state.lock() {
-            s.record(t, kind);
-        }
+        self.record_at(t, kind);
         t
+    }
+
+    /// Records `kind` at `t_ns` (a reading of this sink's clock taken by the caller, so that the
+    /// caller stamps what it derives from the bytes with the very time the capture holds).
+    pub fn record_at(&self, t_ns: u64, kind: RecordKind) {
+        if let Ok(mut s) = self.state.lock() {
+            s.record(t_ns, kind);
+        }
     }
 
     /// Coalescing on or off (default off: a record is one read or one write). On, consecutive

@@ -92,6 +92,8 @@ pub struct Replayer {
     pace: Pace,
     strict: bool,
     hold_open: bool,
+    reads_only_clock: bool,
+    clock: Option<Arc<ManualClock>>,
 }
 
 impl Replayer {
@@ -104,7 +106,26 @@ impl Replayer {
             pace: Pace::Fast,
             strict: false,
             hold_open: false,
+            reads_only_clock: false,
+            clock: None,
         }
+    }
+
+    /// Sets this clock to the recorded times instead of a new one (a device's stamp clock,
+    /// which outlives one recorded session).
+    #[must_use]
+    pub fn with_clock(mut self, clock: Arc<ManualClock>) -> Self {
+        self.clock = Some(clock);
+        self
+    }
+
+    /// The replay clock moves only at `rx` records and at `mark link opened`, as a live
+    /// [`crate::StampedLink`]'s stamp does (other marks are written by the driver itself and do not
+    /// stamp anything). Off by default: the clock also moves at every `ev` record.
+    #[must_use]
+    pub fn reads_only_clock(mut self, on: bool) -> Self {
+        self.reads_only_clock = on;
+        self
     }
 
     #[must_use]
@@ -141,7 +162,7 @@ impl Replayer {
             _ => None,
         });
         let rx_total = rx_total.sum();
-        let clock = ManualClock::new();
+        let clock = self.clock.unwrap_or_else(ManualClock::new);
         let (progress_tx, progress_rx) = watch::channel(ReplayReport {
             rx_bytes_total: rx_total,
             ..ReplayReport::default()
@@ -152,6 +173,7 @@ impl Replayer {
             mode: self.mode,
             strict: self.strict,
             hold_open: self.hold_open,
+            reads_only_clock: self.reads_only_clock,
             cursor: 0,
             rx_offset: 0,
             tx_cursor: first_tx,
@@ -222,6 +244,7 @@ struct ReplayState {
     mode: ReplayMode,
     strict: bool,
     hold_open: bool,
+    reads_only_clock: bool,
     /// Next record to deliver.
     cursor: usize,
     /// Bytes of the current rx record already delivered.
@@ -359,8 +382,10 @@ impl AsyncRead for ReplayIo {
             };
             let t_ns = record.t_ns;
             match &record.kind {
-                RecordKind::Event(_) => {
-                    s.clock.set_ns(t_ns);
+                RecordKind::Event(text) => {
+                    if !s.reads_only_clock || text == "mark link opened" {
+                        s.clock.set_ns(t_ns);
+                    }
                     s.cursor += 1;
                 }
                 RecordKind::Tx(_) => {

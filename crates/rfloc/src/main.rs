@@ -1,29 +1,26 @@
 //! `rfloc`: the rfloc localisation daemon and its tools.
 #![forbid(unsafe_code)]
 
-mod config;
-mod daemon;
-mod devices;
-mod events;
-mod message;
-mod notify;
-mod pipeline;
-mod replay;
-mod scenario;
-mod server;
-mod sim;
 mod watch;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use rfloc_daemon::config::{ConfigErrors, LoadOptions, RobotConfig, SectionCheck};
 
 /// The default robot file: the simulated HF-grid AGV.
+#[cfg(feature = "lab")]
 const EMBEDDED_SIM: &str = include_str!("../../../config/sim.toml");
 
 /// Exit status for configuration errors (sysexits EX_CONFIG).
 const EX_CONFIG: u8 = 78;
+
+/// Sections this build implements beyond the daemon's own.
+#[cfg(feature = "lab")]
+const EXTENSIONS: &[&dyn SectionCheck] = &[&rfloc_lab::sim::SimulationSection];
+#[cfg(not(feature = "lab"))]
+const EXTENSIONS: &[&dyn SectionCheck] = &[];
 
 #[derive(Debug, Parser)]
 #[command(
@@ -40,40 +37,47 @@ struct Cli {
 enum Command {
     /// Run the daemon with a robot configuration (default: the embedded simulation, config/sim.toml).
     Run {
+        /// Robot file (TOML). Without it: the embedded simulated HF-grid robot.
         #[arg(short, long)]
         config: Option<PathBuf>,
         /// Print each pose as a JSON line on stdout as well.
         #[arg(long)]
         stdout: bool,
     },
-    /// Check a robot configuration and exit (78 on error).
+    /// Check a robot configuration and exit (78 with every error as file:line:col: key …).
     Validate {
+        /// Robot file (TOML).
         #[arg(short, long)]
         config: PathBuf,
-        /// Do not check that device nodes and credential files exist (validate for another machine).
+        /// Do not check that device nodes, credential and map files exist (validate for another machine).
         #[arg(long)]
         no_device_check: bool,
     },
-    /// Run the pipeline on captured device logs and print poses as JSON lines.
+    /// Run the recorded devices' own code on captured logs; print poses (or observations) as JSON lines.
     Replay {
-        /// A capture folder (one .cap per device, optional truth.csv).
+        /// A capture folder (one .cap per device; robot.toml and pipeline.order from `rfloc record`).
         dir: PathBuf,
-        /// Pipeline to run (default: chosen from the devices in the folder).
-        #[arg(long)]
+        /// Pipeline to run when the folder has no robot file (its default parameters).
+        #[arg(long, value_parser = clap::builder::PossibleValuesParser::new(rfloc_daemon::config::PIPELINES))]
         pipeline: Option<String>,
-        /// Robot configuration supplying pipeline parameters (default: the folder's
-        /// `robot.toml`, which `rfloc record` writes, when there is one).
+        /// Robot configuration supplying pipeline parameters (default: the folder's `robot.toml`).
         #[arg(short, long)]
         config: Option<PathBuf>,
+        /// Print the decoded observations instead of running a pipeline.
+        #[arg(long)]
+        observations: bool,
     },
     /// Run the daemon and record a capture of every device link into a folder.
     Record {
+        /// Robot file (TOML).
         #[arg(short, long)]
         config: PathBuf,
+        /// Folder for the captures, the robot file and the pipeline's input order.
         #[arg(short, long)]
         out: PathBuf,
     },
     /// Run a seed scenario against emulated devices and report its metrics next to the seed's.
+    #[cfg(feature = "lab")]
     Sim {
         /// Scenario file (see scenarios/).
         scenario: PathBuf,
@@ -103,7 +107,9 @@ enum Command {
 
 fn init_logging(level: &str, format: &str) {
     use tracing_subscriber::EnvFilter;
-    let filter = EnvFilter::try_from_env("RFLOC_LOG").unwrap_or_else(|_| EnvFilter::new(level));
+    let filter = EnvFilter::try_from_env("RFLOC_LOG")
+        .or_else(|_| EnvFilter::try_new(level))
+        .unwrap_or_else(|_| EnvFilter::new("info"));
     // Under systemd the journal adds its own timestamps and does not want colours.
     let journald = std::env::var_os("JOURNAL_STREAM").is_some() && format != "full";
     let builder = tracing_subscriber::fmt()
@@ -117,18 +123,27 @@ fn init_logging(level: &str, format: &str) {
     }
 }
 
-fn load_config(path: &std::path::Path) -> Result<config::RobotConfig, ExitCode> {
-    load_config_with(path, true)
+fn report(errors: &ConfigErrors) -> ExitCode {
+    for e in &errors.0 {
+        eprintln!("{e}");
+    }
+    eprintln!(
+        "rfloc: {} configuration error(s)",
+        errors.0.len()
+    );
+    ExitCode::from(EX_CONFIG)
 }
 
-fn load_config_with(
-    path: &std::path::Path,
-    check_devices: bool,
-) -> Result<config::RobotConfig, ExitCode> {
-    config::RobotConfig::load_with(path, check_devices).map_err(|e| {
-        eprintln!("rfloc: configuration error: {e}");
-        ExitCode::from(EX_CONFIG)
-    })
+fn load_config(path: &Path, check_files: bool) -> Result<RobotConfig, ExitCode> {
+    RobotConfig::load(
+        path,
+        &LoadOptions {
+            check_files,
+            extensions: EXTENSIONS,
+            for_replay: false,
+        },
+    )
+    .map_err(|e| report(&e))
 }
 
 fn runtime() -> std::io::Result<tokio::runtime::Runtime> {
@@ -138,13 +153,55 @@ fn runtime() -> std::io::Result<tokio::runtime::Runtime> {
         .build()
 }
 
+/// The embedded default robot file.
+#[cfg(feature = "lab")]
+fn embedded() -> Result<RobotConfig, ExitCode> {
+    RobotConfig::load_text(
+        EMBEDDED_SIM,
+        "config/sim.toml (embedded)",
+        None,
+        &LoadOptions {
+            check_files: true,
+            extensions: EXTENSIONS,
+            for_replay: false,
+        },
+    )
+    .map_err(|e| report(&e))
+}
+
+#[cfg(not(feature = "lab"))]
+fn embedded() -> Result<RobotConfig, ExitCode> {
+    eprintln!("rfloc: this build has no simulator (cargo feature `lab`); give a robot file with -c");
+    Err(ExitCode::from(EX_CONFIG))
+}
+
+/// Runs the daemon, with the lab's emulators when the robot file asks for a simulation.
+async fn run_daemon(
+    mut cfg: RobotConfig,
+    opts: rfloc_daemon::daemon::RunOptions,
+) -> anyhow::Result<()> {
+    let sim: Option<Box<dyn rfloc_daemon::simulation::Simulation>> = if cfg.simulation {
+        #[cfg(feature = "lab")]
+        {
+            Some(Box::new(rfloc_lab::sim::start(&mut cfg).await?))
+        }
+        #[cfg(not(feature = "lab"))]
+        {
+            anyhow::bail!("this build has no simulator (cargo feature `lab`)")
+        }
+    } else {
+        None
+    };
+    rfloc_daemon::daemon::run(cfg, opts, sim).await
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
         Command::Validate {
             config,
             no_device_check,
-        } => match load_config_with(&config, !no_device_check) {
+        } => match load_config(&config, !no_device_check) {
             Ok(cfg) => {
                 println!(
                     "{}: ok (robot {:?}, {} device(s), pipeline {})",
@@ -158,38 +215,28 @@ fn main() -> ExitCode {
             Err(code) => code,
         },
         Command::Run { config, stdout } => {
-            let config_dir = config
-                .as_ref()
-                .and_then(|p| p.parent().map(std::path::Path::to_path_buf));
             let (cfg, stdout) = match config {
-                Some(path) => match load_config(&path) {
+                Some(path) => match load_config(&path, true) {
                     Ok(c) => (c, stdout),
                     Err(code) => return code,
                 },
                 // The embedded default always prints its poses.
-                None => {
-                    match config::RobotConfig::parse(EMBEDDED_SIM, "config/sim.toml (embedded)") {
-                        Ok(c) => (c, true),
-                        Err(e) => {
-                            eprintln!("rfloc: embedded configuration error: {e}");
-                            return ExitCode::from(EX_CONFIG);
-                        }
-                    }
-                }
+                None => match embedded() {
+                    Ok(c) => (c, true),
+                    Err(code) => return code,
+                },
             };
             init_logging(&cfg.log.level, &cfg.log.format);
-            run_async(daemon::run(
+            run_async(run_daemon(
                 cfg,
-                daemon::RunOptions {
+                rfloc_daemon::daemon::RunOptions {
                     stdout,
                     capture_dir: None,
-                    config_dir,
                 },
             ))
         }
         Command::Record { config, out } => {
-            let config_dir = config.parent().map(std::path::Path::to_path_buf);
-            let cfg = match load_config(&config) {
+            let cfg = match load_config(&config, true) {
                 Ok(c) => c,
                 Err(code) => return code,
             };
@@ -205,12 +252,11 @@ fn main() -> ExitCode {
                 );
                 return ExitCode::from(73);
             }
-            run_async(daemon::run(
+            run_async(run_daemon(
                 cfg,
-                daemon::RunOptions {
+                rfloc_daemon::daemon::RunOptions {
                     stdout: false,
                     capture_dir: Some(out),
-                    config_dir,
                 },
             ))
         }
@@ -218,31 +264,40 @@ fn main() -> ExitCode {
             dir,
             pipeline,
             config,
+            observations,
         } => {
             init_logging("warn", "text");
-            // Without -c, the robot file recorded with the session (if any) configures the
-            // pipeline; its devices need not exist here.
-            let session_robot = dir.join("robot.toml");
             let cfg = match config {
-                Some(c) => load_config(&c).map(Some),
-                None if pipeline.is_none() && session_robot.is_file() => {
-                    load_config_with(&session_robot, false).map(Some)
+                Some(c) => match load_config(&c, false) {
+                    Ok(c) => Some(c),
+                    Err(code) => return code,
+                },
+                None => None,
+            };
+            let opts = rfloc_daemon::replay::ReplayOptions {
+                pipeline,
+                config: cfg,
+                observations,
+            };
+            match rfloc_daemon::replay::replay_dir(dir, &opts) {
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("rfloc: {e:#}");
+                    ExitCode::FAILURE
                 }
-                None => Ok(None),
-            };
-            let cfg = match cfg {
-                Ok(c) => c,
-                Err(code) => return code,
-            };
-            run_async(replay::replay_dir(dir, pipeline, cfg))
+            }
         }
+        #[cfg(feature = "lab")]
         Command::Sim {
             scenario: path,
             out,
             trials,
         } => {
             init_logging("warn", "text");
-            run_async(scenario::run(&path, scenario::SimOptions { out, trials }))
+            run_async(rfloc_lab::scenario::run(
+                &path,
+                rfloc_lab::scenario::SimOptions { out, trials },
+            ))
         }
         Command::Watch {
             tcp,

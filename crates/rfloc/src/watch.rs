@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
+use rfloc_daemon::message::Message;
 use tokio::io::{AsyncBufReadExt, AsyncRead, BufReader};
 
 /// Where to connect.
@@ -38,13 +39,16 @@ async fn print_stream<R: AsyncRead + Unpin>(
     let mut lines = BufReader::new(r).lines();
     let mut poses = 0usize;
     while let Some(line) = lines.next_line().await? {
-        let is_pose = line.contains("\"class\":\"POSE\"");
+        let message = Message::from_line(&line);
         if raw {
             println!("{line}");
         } else {
-            println!("{}", summarise(&line));
+            match &message {
+                Ok(m) => println!("{}", summarise(m)),
+                Err(e) => println!("? {line} ({e})"),
+            }
         }
-        if is_pose {
+        if matches!(message, Ok(Message::Pose(_))) {
             poses += 1;
             if count.is_some_and(|c| poses >= c) {
                 break;
@@ -54,40 +58,33 @@ async fn print_stream<R: AsyncRead + Unpin>(
     Ok(())
 }
 
-/// One human line per object.
+/// One human line per message.
 #[must_use]
-pub fn summarise(line: &str) -> String {
-    let Ok(v) = serde_json::from_str::<serde_json::Value>(line) else {
-        return format!("? {line}");
-    };
-    match v["class"].as_str() {
-        Some("POSE") => format!(
+pub fn summarise(m: &Message) -> String {
+    match m {
+        Message::Pose(p) => format!(
             "POSE {} x={:.3} y={:.3} yaw={:.1}° σxy={:.3} m mode={} src={}",
-            v["time"].as_str().unwrap_or("?"),
-            v["x"].as_f64().unwrap_or(f64::NAN),
-            v["y"].as_f64().unwrap_or(f64::NAN),
-            v["yaw"].as_f64().unwrap_or(f64::NAN).to_degrees(),
-            (v["cov"][0].as_f64().unwrap_or(0.0) + v["cov"][7].as_f64().unwrap_or(0.0)).sqrt(),
-            v["mode"].as_str().unwrap_or("?"),
-            v["source"].as_str().unwrap_or("?"),
+            p.time,
+            p.x,
+            p.y,
+            p.yaw.to_degrees(),
+            (p.cov.first().copied().unwrap_or(0.0) + p.cov.get(7).copied().unwrap_or(0.0)).sqrt(),
+            p.mode,
+            p.source,
         ),
-        Some("TARGET") => format!(
+        Message::Target(t) => format!(
             "TARGET {} {} x={:.3} y={:.3} σxy={:.3} m src={}",
-            v["time"].as_str().unwrap_or("?"),
-            v["id"].as_str().unwrap_or("?"),
-            v["x"].as_f64().unwrap_or(f64::NAN),
-            v["y"].as_f64().unwrap_or(f64::NAN),
-            (v["cov"][0].as_f64().unwrap_or(0.0) + v["cov"][2].as_f64().unwrap_or(0.0)).sqrt(),
-            v["source"].as_str().unwrap_or("?"),
+            t.time,
+            t.id,
+            t.x,
+            t.y,
+            (t.cov[0] + t.cov[2]).sqrt(),
+            t.source,
         ),
-        Some("DEVICE") => format!(
-            "DEVICE {} {} ({}) {}",
-            v["name"].as_str().unwrap_or("?"),
-            v["state"].as_str().unwrap_or("?"),
-            v["driver"].as_str().unwrap_or("?"),
-            v["detail"].as_str().unwrap_or("")
+        Message::Device(d) => format!("DEVICE {} {} ({}) {}", d.name, d.state, d.driver, d.detail),
+        Message::Version(v) => format!(
+            "VERSION rfloc {} protocol {}.{}",
+            v.release, v.proto_major, v.proto_minor
         ),
-        Some(other) => format!("{other} {line}"),
-        None => format!("? {line}"),
     }
 }

@@ -1,0 +1,132 @@
+//! The daemon's own sections: `[robot]`, `[pose]`, `[log]`, `[state]`.
+
+use std::path::PathBuf;
+
+use serde::Deserialize;
+
+use super::diag::Checks;
+
+/// `[robot]`: its name and frames.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotSection {
+    pub name: String,
+    #[serde(default = "default_frame")]
+    pub frame_id: String,
+    #[serde(default = "default_child_frame")]
+    pub child_frame_id: String,
+}
+
+fn default_frame() -> String {
+    "map".into()
+}
+
+fn default_child_frame() -> String {
+    "base_link".into()
+}
+
+/// Where poses go.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PoseOutputConfig {
+    /// TCP listen address for JSON lines (None: no TCP server).
+    #[serde(default = "default_pose_tcp")]
+    pub tcp: Option<String>,
+    /// Unix socket path for JSON lines.
+    pub unix: Option<PathBuf>,
+    /// Also print each pose as a JSON line on stdout.
+    #[serde(default)]
+    pub stdout: bool,
+    /// Fraction digits for metres (radians get two more).
+    #[serde(default = "default_precision")]
+    pub precision: usize,
+    /// Per-client queue length before a slow client is dropped.
+    #[serde(default = "default_client_queue")]
+    pub client_queue: usize,
+}
+
+fn default_pose_tcp() -> Option<String> {
+    Some("127.0.0.1:2948".into())
+}
+fn default_precision() -> usize {
+    4
+}
+fn default_client_queue() -> usize {
+    64
+}
+
+impl Default for PoseOutputConfig {
+    fn default() -> Self {
+        Self {
+            tcp: default_pose_tcp(),
+            unix: None,
+            stdout: false,
+            precision: default_precision(),
+            client_queue: default_client_queue(),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LogConfig {
+    /// `error`, `warn`, `info`, `debug`, `trace`, or a tracing filter directive.
+    #[serde(default = "default_level")]
+    pub level: String,
+    /// `text` (journald-friendly, no colours, no timestamps under systemd) or `full`.
+    #[serde(default = "default_format")]
+    pub format: String,
+}
+fn default_level() -> String {
+    "info".into()
+}
+fn default_format() -> String {
+    "text".into()
+}
+impl Default for LogConfig {
+    fn default() -> Self {
+        Self {
+            level: default_level(),
+            format: default_format(),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StateConfig {
+    /// Folder for learned maps and persisted state (systemd `StateDirectory=`).
+    pub dir: Option<PathBuf>,
+    /// Folder to record captures of every device link into (`record` sets it too).
+    pub capture_dir: Option<PathBuf>,
+}
+
+
+impl PoseOutputConfig {
+    pub(crate) fn check(&self, c: &mut Checks<'_, '_>) {
+        if let Some(addr) = &self.tcp {
+            if addr.parse::<std::net::SocketAddr>().is_err() {
+                c.error("tcp", format!("{addr:?} is not an ip:port address"));
+            }
+        }
+        c.count("precision", self.precision as u64, 1, 9);
+        c.count("client_queue", self.client_queue as u64, 1, 100_000);
+    }
+}
+
+impl LogConfig {
+    pub(crate) fn check(&self, c: &mut Checks<'_, '_>) {
+        c.one_of("format", &self.format, &["text", "full"]);
+        if tracing_subscriber_filter_is_invalid(&self.level) {
+            c.error(
+                "level",
+                format!("{:?} is not a log level (error, warn, info, debug, trace) or filter directive", self.level),
+            );
+        }
+    }
+}
+
+/// A level or a `target=level,…` directive list, as the logger takes it.
+fn tracing_subscriber_filter_is_invalid(level: &str) -> bool {
+    level.trim().is_empty() || tracing_subscriber::EnvFilter::try_new(level).is_err()
+}

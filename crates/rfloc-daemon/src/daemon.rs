@@ -1,0 +1,464 @@
+//! `rfloc run`: device tasks under one cancellation token, the estimator thread, the pose
+//! stream, stale detection and systemd notifications.
+//!
+//! ```text
+//! device tasks ──DeviceEvent──▶ router task ──bounded queue──▶ estimator thread ──▶ pose hub, stdout
+//!   (one per device,              (DEVICE lines, wall-time        (pipeline, POSE/TARGET,
+//!    tokio runtime)                stale detection, watchdog)       requests ──▶ device queues)
+//! ```
+
+use std::collections::{HashMap, VecDeque};
+use std::path::PathBuf;
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+use std::time::{Duration, SystemTime};
+
+use anyhow::Context;
+use rfloc_transport::{MonotonicClock, SharedClock};
+use tokio::sync::mpsc;
+use tokio::task::JoinHandle;
+use tokio_util::sync::CancellationToken;
+
+use crate::config::RobotConfig;
+use crate::devices::{DeviceContext, LinkSource, Resources};
+use crate::estimator::{self, Input, Outputs, Route, Worker};
+use crate::events::{DeviceEvent, DeviceState};
+use crate::message::{self, PoseFormat};
+use crate::notify;
+use crate::pipeline::{self, PipelineEnv};
+use crate::server::{bind_unix, PoseHub};
+use crate::simulation::{Simulation, SimulationIo};
+use crate::time::TimeOrigin;
+
+/// Options of one run that do not come from the robot file.
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    /// Print POSE and TARGET lines on stdout.
+    pub stdout: bool,
+    /// Record every device link (and the pipeline's input order) into this folder.
+    pub capture_dir: Option<PathBuf>,
+}
+
+/// Inputs the estimator thread's queue holds before the router keeps them itself.
+const ESTIMATOR_QUEUE: usize = 4096;
+/// Inputs the router keeps while the estimator is behind, before it drops the oldest.
+const ROUTER_BACKLOG: usize = 100_000;
+/// Queued requests per device.
+const REQUEST_QUEUE: usize = 16;
+
+/// Runs until SIGTERM/SIGINT (or the simulation's duration). `sim` is the running simulation of
+/// a robot file with a `[simulation]` section (its emulators already serve the devices).
+pub async fn run(
+    cfg: RobotConfig,
+    opts: RunOptions,
+    mut sim: Option<Box<dyn Simulation>>,
+) -> anyhow::Result<()> {
+    let stop = CancellationToken::new();
+    spawn_signal_handler(stop.clone());
+    let capture_dir = opts
+        .capture_dir
+        .clone()
+        .or_else(|| cfg.state.capture_dir.clone());
+    if let Some(dir) = &capture_dir {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("creating capture folder {}", dir.display()))?;
+    }
+    let config_dir = cfg.source.dir.clone();
+
+    // The run clock and its origin: simulated seconds in a simulation, monotonic time on a robot.
+    let clock: SharedClock = sim
+        .as_ref()
+        .and_then(|s| s.clock())
+        .unwrap_or_else(|| Arc::new(MonotonicClock::new()));
+    let origin = TimeOrigin::from_unix_ns(
+        TimeOrigin::now().unix_ns() - i128::from(rfloc_transport::clock_ns(clock.as_ref())),
+    );
+    let time_scale = sim.as_ref().map_or(1.0, |s| s.time_scale());
+
+    // Pose stream.
+    let hub = PoseHub::new(cfg.pose.client_queue);
+    let mut servers = Vec::new();
+    if let Some(addr) = &cfg.pose.tcp {
+        let listener = tokio::net::TcpListener::bind(addr)
+            .await
+            .with_context(|| format!("binding pose stream on {addr}"))?;
+        tracing::info!(address = %listener.local_addr()?, "pose stream (tcp)");
+        servers.push(tokio::spawn(hub.clone().serve_tcp(listener, stop.clone())));
+    }
+    if let Some(path) = &cfg.pose.unix {
+        let listener = bind_unix(path)
+            .with_context(|| format!("binding pose stream on {}", path.display()))?;
+        tracing::info!(path = %path.display(), "pose stream (unix)");
+        servers.push(tokio::spawn(hub.clone().serve_unix(
+            listener,
+            path.clone(),
+            stop.clone(),
+        )));
+    }
+
+    // What devices lend each other: a simulation's rotator first, else the robot's stepper.
+    let resources = Arc::new(Resources::default());
+    if let Some(antenna) = sim.as_mut().and_then(|s| s.take_antenna()) {
+        resources.offer_antenna(antenna);
+    }
+    if let Ok(mut scan) = resources.scan.lock() {
+        *scan = Some(pipeline::scan_config(&cfg.estimator));
+    }
+    for d in &cfg.devices {
+        d.driver.provide(&resources);
+    }
+
+    // Device tasks.
+    let (ev_tx, ev_rx) = mpsc::channel::<DeviceEvent>(1024);
+    let mut tasks: Vec<(String, JoinHandle<()>)> = Vec::new();
+    let mut routes = Vec::new();
+    for device in &cfg.devices {
+        let (cmd_tx, cmd_rx) = mpsc::channel(REQUEST_QUEUE);
+        let ctx = DeviceContext::new(
+            device.clone(),
+            ev_tx.clone(),
+            stop.clone(),
+            LinkSource::Live {
+                clock: Arc::clone(&clock),
+                origin,
+                capture_dir: capture_dir.clone(),
+                capture: std::sync::Mutex::new(None),
+            },
+            config_dir.clone(),
+            time_scale,
+            cmd_rx,
+            Arc::clone(&resources),
+        );
+        tasks.push((device.name.clone(), device.driver.spawn(ctx)));
+        routes.push(Route {
+            device: device.name.clone(),
+            driver: device.driver.clone(),
+            queue: cmd_tx,
+            answered_requests: None,
+        });
+    }
+    if let Some(s) = sim.as_mut() {
+        let base = routes
+            .iter()
+            .find(|r| {
+                r.driver
+                    .handles(&pipeline::Request::Velocity { v: 0.0, w: 0.0 })
+            })
+            .map(|r| r.queue.clone());
+        s.started(SimulationIo {
+            events: ev_tx.clone(),
+            base,
+            estimator: &cfg.estimator,
+            pipeline_drives_base: pipeline::drives_base(&cfg.estimator),
+            stop: stop.clone(),
+        });
+    }
+    drop(ev_tx);
+
+    // The estimator thread.
+    let pipeline = pipeline::build(
+        &cfg.estimator,
+        PipelineEnv {
+            state_dir: cfg.state.dir.as_deref(),
+            config_dir: config_dir.as_deref(),
+        },
+    )
+    .map_err(|e| anyhow::anyhow!("pipeline {}: {e}", cfg.estimator.name()))?;
+    let order_log = match &capture_dir {
+        Some(dir) => Some(estimator::create_order_log(dir).context("creating the pipeline order log")?),
+        None => None,
+    };
+    let worker = Worker {
+        pipeline: Some(pipeline),
+        format: PoseFormat {
+            frame_id: cfg.robot.frame_id.clone(),
+            child_frame_id: cfg.robot.child_frame_id.clone(),
+            precision: cfg.pose.precision,
+            origin,
+        },
+        stale_after: cfg
+            .devices
+            .iter()
+            .map(|d| (d.name.clone(), d.stale_after()))
+            .collect(),
+        routes,
+        outputs: Outputs {
+            hub: Some(hub.clone()),
+            stdout: opts.stdout || cfg.pose.stdout,
+            collect: None,
+            order_log,
+            scorer: sim.as_ref().and_then(|s| s.scorer()),
+            ack: None,
+        },
+        print_observations: false,
+    };
+    let thread = estimator::spawn(worker, ESTIMATOR_QUEUE).context("starting the estimator thread")?;
+    tracing::info!(pipeline = cfg.estimator.name(), "estimator ready");
+
+    notify::ready();
+    notify::status(&format!("running pipeline {}", cfg.estimator.name()));
+    tracing::info!(robot = %cfg.robot.name, pipeline = cfg.estimator.name(), devices = cfg.devices.len(), "rfloc running");
+
+    let deadline = sim
+        .as_ref()
+        .and_then(|s| s.duration_s())
+        .map(|d| tokio::time::Instant::now() + Duration::from_secs_f64(d / time_scale.max(1e-6)));
+    let mut router = Router {
+        hub: hub.clone(),
+        thread_tx: thread.tx.clone(),
+        progress: Arc::clone(&thread.progress),
+        backlog: VecDeque::new(),
+        dropped: 0,
+        stale: StaleWatch::new(&cfg, time_scale),
+        last_consumed: (0, tokio::time::Instant::now()),
+    };
+    router
+        .run(ev_rx, &stop, deadline, &tasks)
+        .await;
+
+    notify::stopping();
+    tracing::info!("stopping: halting the robot and closing devices");
+    stop.cancel();
+    for (name, t) in tasks {
+        if tokio::time::timeout(Duration::from_secs(5), t).await.is_err() {
+            tracing::warn!(device = %name, "device task did not stop within 5 s");
+        }
+    }
+    // The estimator sees the end of its input, then stops.
+    router.flush_backlog_blocking();
+    let _ = thread.tx.send(Input::End);
+    drop(router);
+    let joined = tokio::task::spawn_blocking(move || thread.handle.join()).await;
+    if !matches!(joined, Ok(Ok(()))) {
+        tracing::error!("the estimator thread ended abnormally");
+    }
+    if let Some(sim) = sim {
+        sim.shutdown().await;
+    }
+    for s in servers {
+        let _ = tokio::time::timeout(Duration::from_secs(1), s).await;
+    }
+    tracing::info!(slow_clients_dropped = hub.dropped_clients(), "stopped");
+    Ok(())
+}
+
+/// The async side: device events in, DEVICE lines and the estimator's queue out.
+struct Router {
+    hub: PoseHub,
+    thread_tx: std::sync::mpsc::SyncSender<Input>,
+    progress: Arc<estimator::Progress>,
+    /// Observations the estimator's queue had no room for yet, oldest first.
+    backlog: VecDeque<DeviceEvent>,
+    dropped: u64,
+    stale: StaleWatch,
+    /// Inputs the estimator had consumed at the last check, and when that count last moved.
+    last_consumed: (u64, tokio::time::Instant),
+}
+
+impl Router {
+    async fn run(
+        &mut self,
+        mut ev_rx: mpsc::Receiver<DeviceEvent>,
+        stop: &CancellationToken,
+        deadline: Option<tokio::time::Instant>,
+        tasks: &[(String, JoinHandle<()>)],
+    ) {
+        let watchdog = notify::watchdog_period().unwrap_or(Duration::from_secs(1));
+        let mut tick = tokio::time::interval(watchdog.min(Duration::from_millis(500)));
+        let mut retry = tokio::time::interval(Duration::from_millis(5));
+        loop {
+            tokio::select! {
+                () = stop.cancelled() => break,
+                () = sleep_until_opt(deadline) => {
+                    tracing::info!("simulation duration reached");
+                    stop.cancel();
+                    break;
+                }
+                _ = tick.tick() => {
+                    for (name, driver, limit) in self.stale.check() {
+                        tracing::warn!(device = %name, "device silent");
+                        self.hub.publish_device(&name, message::device_json(&name, driver, DeviceState::Stale, &format!("silent for more than {limit:.1} s"), SystemTime::now()));
+                    }
+                    if self.healthy(tasks, watchdog) {
+                        notify::watchdog();
+                    }
+                }
+                _ = retry.tick(), if !self.backlog.is_empty() => self.drain_backlog(),
+                e = ev_rx.recv() => match e {
+                    Some(e) => self.handle(e),
+                    None => break,
+                },
+            }
+        }
+    }
+
+    fn handle(&mut self, event: DeviceEvent) {
+        if let DeviceEvent::Status {
+            device,
+            driver,
+            state,
+            detail,
+        } = &event
+        {
+            tracing::info!(device = %device, state = state.as_str(), detail = %detail, "device status");
+            self.hub.publish_device(
+                device,
+                message::device_json(device, driver, *state, detail, SystemTime::now()),
+            );
+            self.stale.status(device, *state);
+            return;
+        }
+        if self.stale.seen(event.device()) {
+            let name = event.device().to_string();
+            let driver = self.stale.driver(&name);
+            self.hub.publish_device(
+                &name,
+                message::device_json(&name, driver, DeviceState::Connected, "data again", SystemTime::now()),
+            );
+        }
+        self.backlog.push_back(event);
+        self.drain_backlog();
+    }
+
+    /// Moves observations from the backlog into the estimator's queue while it has room.
+    fn drain_backlog(&mut self) {
+        while let Some(e) = self.backlog.pop_front() {
+            match self.thread_tx.try_send(Input::Event(e)) {
+                Ok(()) => {
+                    self.progress.queued.fetch_add(1, Ordering::AcqRel);
+                }
+                Err(std::sync::mpsc::TrySendError::Full(Input::Event(e))) => {
+                    self.backlog.push_front(e);
+                    break;
+                }
+                Err(_) => {
+                    self.backlog.clear();
+                    break;
+                }
+            }
+        }
+        while self.backlog.len() > ROUTER_BACKLOG {
+            self.backlog.pop_front();
+            self.dropped += 1;
+            if self.dropped.is_power_of_two() {
+                tracing::error!(dropped = self.dropped, "estimator far behind: oldest observations dropped");
+            }
+        }
+    }
+
+    /// Hands the whole backlog to the estimator, waiting for room (at shutdown).
+    fn flush_backlog_blocking(&mut self) {
+        while let Some(e) = self.backlog.pop_front() {
+            if self.thread_tx.send(Input::Event(e)).is_err() {
+                break;
+            }
+            self.progress.queued.fetch_add(1, Ordering::AcqRel);
+        }
+    }
+
+    /// The watchdog is fed only while every device task is alive and the estimator keeps
+    /// consuming (or has nothing to consume).
+    fn healthy(&mut self, tasks: &[(String, JoinHandle<()>)], watchdog: Duration) -> bool {
+        let now = tokio::time::Instant::now();
+        let consumed = self.progress.consumed.load(Ordering::Acquire);
+        if consumed != self.last_consumed.0 {
+            self.last_consumed = (consumed, now);
+        }
+        let waiting = self.progress.backlog() > 0 || !self.backlog.is_empty();
+        let estimator_ok = !waiting || now.duration_since(self.last_consumed.1) < watchdog;
+        let dead: Vec<&str> = tasks
+            .iter()
+            .filter(|(_, t)| t.is_finished())
+            .map(|(n, _)| n.as_str())
+            .collect();
+        if !estimator_ok {
+            tracing::error!(backlog = self.progress.backlog(), "estimator not consuming: watchdog not fed");
+        }
+        if !dead.is_empty() {
+            tracing::error!(devices = ?dead, "device task ended: watchdog not fed");
+        }
+        estimator_ok && dead.is_empty()
+    }
+}
+
+/// Wall-time staleness of each device, for DEVICE lines (pose degradation is decided on
+/// measurement times by the estimator thread).
+struct StaleWatch {
+    limits: HashMap<String, (Duration, &'static str)>,
+    last_seen: HashMap<String, tokio::time::Instant>,
+    stale: HashMap<String, bool>,
+}
+
+impl StaleWatch {
+    fn new(cfg: &RobotConfig, time_scale: f64) -> Self {
+        Self {
+            limits: cfg
+                .devices
+                .iter()
+                .map(|d| {
+                    (
+                        d.name.clone(),
+                        (
+                            Duration::from_secs_f64(d.stale_after() / time_scale.max(1e-6)),
+                            d.driver.kind(),
+                        ),
+                    )
+                })
+                .collect(),
+            last_seen: HashMap::new(),
+            stale: HashMap::new(),
+        }
+    }
+
+    fn driver(&self, name: &str) -> &'static str {
+        self.limits.get(name).map_or("?", |(_, k)| k)
+    }
+
+    /// An observation of `name`; true when it was stale.
+    fn seen(&mut self, name: &str) -> bool {
+        self.last_seen
+            .insert(name.to_string(), tokio::time::Instant::now());
+        self.stale.insert(name.to_string(), false) == Some(true)
+    }
+
+    fn status(&mut self, _name: &str, _state: DeviceState) {}
+
+    /// Devices that just became stale: (name, driver, limit in seconds).
+    fn check(&mut self) -> Vec<(String, &'static str, f64)> {
+        let now = tokio::time::Instant::now();
+        let mut out = Vec::new();
+        for (name, (limit, driver)) in &self.limits {
+            let is_stale = self
+                .last_seen
+                .get(name)
+                .is_some_and(|t| now.duration_since(*t) > *limit);
+            let was = self.stale.insert(name.clone(), is_stale).unwrap_or(false);
+            if is_stale && !was {
+                out.push((name.clone(), *driver, limit.as_secs_f64()));
+            }
+        }
+        out
+    }
+}
+
+async fn sleep_until_opt(deadline: Option<tokio::time::Instant>) {
+    match deadline {
+        Some(d) => tokio::time::sleep_until(d).await,
+        None => std::future::pending().await,
+    }
+}
+
+fn spawn_signal_handler(stop: CancellationToken) {
+    tokio::spawn(async move {
+        let term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate());
+        let Ok(mut term) = term else {
+            tracing::error!("cannot install SIGTERM handler");
+            return;
+        };
+        tokio::select! {
+            _ = term.recv() => tracing::info!("SIGTERM"),
+            _ = tokio::signal::ctrl_c() => tracing::info!("SIGINT"),
+        }
+        stop.cancel();
+    });
+}

@@ -1,0 +1,592 @@
+//! Simulated trials of the ekf-slam scenarios (seed 003: XBee EKF-SLAM with waypoint
+//! navigation), end to end through rfloc's drivers over real pseudo-terminals.
+//!
+//! Per trial:
+//! - a Pioneer emulator (`rfloc_aria::RobotEmulator`) and an XBee coordinator emulator
+//!   (`rfloc_xbee::CoordinatorEmulator`) each serve the master side of a pty; `AriaClient` and
+//!   `XBeeClient` open the slave sides by path through `rfloc_transport::open`, wrapped in
+//!   `rfloc_transport::Recorder`s writing `pioneer.cap` and `xbee.cap` into the trial folder;
+//! - the coordinator answers `ND` with each beacon's RSSI from the scenario's XBee model
+//!   (`rfloc_sim::SensorSuite::xbee_rssi`), given the emulator's true pose and the
+//!   `SimulatedStepper`'s current angle;
+//! - the emulated Pioneer runs in lock-step with the trial (`lockstep`): each loop iteration
+//!   asks for one 100 ms tick, which the emulator takes only after handling every command the
+//!   driver wrote, and waits for that tick's SIP; the loop then runs the EKF prediction from the
+//!   odometry increment, the waypoint controller on the estimate, and sends VEL/RVEL (a command
+//!   every tick, which also feeds the robot's watchdog; the driver's wall-time PULSE is off).
+//!   Every [`SWEEP_EVERY_S`] of driving the robot stops (the seed sweeps at a standstill), the
+//!   `ScanRunner` turns the simulated stepper through 40 stops of 9° with
+//!   [`ND_ROUNDS_PER_STOP`] `ND` rounds per stop, and each beacon's level and bearing, fitted
+//!   with the reflector's gain pattern, update the filter (known association by 64-bit
+//!   address). A sweep takes [`ROUND_SECONDS`] of simulated time per round (2 s for 40 rounds):
+//!   the probe ticks the standing robot once every second round;
+//! - truth and estimate are recorded at every SIP on the trial's *mission clock*: SIP periods
+//!   plus the sweeps' time, which is the emulator's clock less the settling ticks.
+//!   The true pose is the emulator's state after the tick. The trial ends at the scenario's
+//!   `duration_s` of mission time or when the last waypoint is reached (`successes`).
+//!
+//! Odometry error. The seed's Table 3.1 motion noise alone makes dead reckoning better than
+//! the seed's EKF-SLAM (see the rfloc-sim README), so the wheels slip: each wheel's travel
+//! gets a relative Gaussian error per 10 ms substep, σ = the scenario's `drive.slip_sigma`, or
+//! [`DEFAULT_SLIP_SIGMA`] when the scenario sets none (the seed003 scenario files set none).
+//! It is applied to the odometry increments between the driver and the filter (`slip`), not
+//! by the emulator's own `WheelSlip` (that one perturbs the truth, which would change the
+//! error model the filter is told about; its draws are per simulated tick, so it would be
+//! reproducible too). The filter is told the same error model. The odometry-only error is reported beside the
+//! filter's (`odometry_rmse_m`, `odometry_rmse_theta_rad`).
+//!
+//! Measurement model given to the filter, as an operator would calibrate it: the sweep
+//! estimator fits the reflector's gain pattern (the scenario's, i.e. a calibrated pattern) to
+//! all 40 stops, with one reading's σ = fast fading and whole-dBm rounding (√(1 + 1/12) dB);
+//! eq. 2.7 with the scenario's `P_ref` and η; the fitted level of each sweep as an RSSI
+//! measurement with σ² = shadowing² + the fit's error (≈ 3.0 dB); the fitted bearing with the
+//! fit's Cramér–Rao variance plus (1°)². A beacon not yet in the map gets RSSI-and-bearing views,
+//! each view's pose kept in the filter state, until the filter's delayed initialisation
+//! triangulates it (largest σ ≤ [`DELAYED_INIT_MAX_STD_M`]) and adds it with every view as
+//! one update (`rfloc_ekfslam::DelayedInit`). Beacon errors are averaged from the moment each
+//! beacon is mapped (`beacon_rmse_k_m`); `beacon_final_k_m` is the error at the end. The sweep
+//! measurements are also scored against the truth (`bearing_error_rms_deg`, `rssi_residual_*`,
+//! and their ratios to the σ given to the filter, `*_z_rms`), and the pose against the filter's
+//! own covariance (`heading_z_rms`, `position_nees_per_dof`).
+//!
+//! Reproducibility. Every random draw is seeded from the trial seed (sensor streams of
+//! `SensorSuite`, the odometry slip), the emulated Pioneer moves only when the trial ticks it,
+//! after it has handled every byte the driver wrote, and the coordinator answers an `ND` within
+//! the simulated instant of the request. A run is therefore a function of the scenario and the
+//! seed alone: two runs with one seed write identical captures, truth and estimate files
+//! (`tests/sim_determinism.rs`), however loaded the machine. `--time-scale` does not apply.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::sync::{Arc, Mutex};
+
+use anyhow::Context;
+use rfloc_bearing::{
+    CosinePowerPattern, EstimatorConfig, GainPattern, PathLossModel, ScanConfig, ScanRunner,
+    SweepPlanConfig,
+};
+use rfloc_pose::{angle_diff, Pose2};
+use rfloc_sim::geometry::Point;
+use rfloc_sim::recorder::TrialRecorder;
+use rfloc_sim::{Scenario, SensorSuite};
+use rfloc_stepper::{SimulatedStepper, StepperConfig};
+
+use super::SimOptions;
+use rfloc_daemon::config::{EkfSlamSettings, WheelSlipSettings};
+use rfloc_daemon::events::{DeviceEvent, SweptBeacon};
+use rfloc_daemon::pipeline::{EkfSlamPipeline, Pipeline, Request};
+
+mod probe;
+mod rig;
+mod slip;
+
+use super::lockstep::LockstepBase;
+// The lock-step base lives in `scenario::lockstep` (seed 001 uses it too); re-exported for the
+// seed 002 trial, which imports it from here.
+pub(super) use super::lockstep;
+use probe::NdRssiProbe;
+use rig::{Rig, RigSettings};
+use slip::OdometrySlip;
+
+/// Driving time between two sweeps, simulated seconds.
+pub const SWEEP_EVERY_S: f64 = 3.0;
+/// `ND` rounds per antenna stop.
+pub const ND_ROUNDS_PER_STOP: u32 = 1;
+/// Mission time one `ND` round (with the antenna step before it) counts for, seconds; a sweep
+/// of 40 stops with one round each takes 2 s.
+pub const ROUND_SECONDS: f64 = 0.05;
+/// Wheel slip σ (relative, per 10 ms substep) when the scenario sets no `drive.slip_sigma`.
+pub const DEFAULT_SLIP_SIGMA: f64 = 0.05;
+/// A triangulated beacon joins the map once the largest σ of its position is below this, m
+/// (the filter's default 1.5 m let a beacon seen only head-on, e.g. case II's (9, 2) on the
+/// first leg, in with a wrong range; with the views' poses in the state waiting costs no
+/// information, and 0.3 m mapped every beacon in every trial, 0.2 m not).
+const DELAYED_INIT_MAX_STD_M: f64 = 0.3;
+/// SIPs the trial waits for after connecting before it starts driving (1 s).
+const SETTLE_SIPS: u64 = 10;
+/// SIP period of the emulated Pioneer, seconds.
+const SIP_PERIOD_S: f64 = 0.1;
+/// Emulator substep, seconds (the Pioneer emulator runs 10 substeps per 100 ms SIP).
+const SUBSTEP_S: f64 = 0.01;
+/// Emulator wheel track, metres (2 / DiffConvFactor of a P3-DX-SH, the emulator's default).
+const EMULATOR_TRACK_M: f64 = 2.0 / 5.6;
+/// Added in quadrature to every bearing σ from the sweep estimator, degrees (pattern and
+/// mounting calibration error).
+const BEARING_FLOOR_DEG: f64 = 1.0;
+
+/// Runs one trial.
+pub async fn run_trial(
+    scenario: &Scenario,
+    trial: usize,
+    dir: &Path,
+    opts: &SimOptions,
+) -> anyhow::Result<TrialRecorder> {
+    // Lock-step emulators: `opts.time_scale` does not apply (see the module documentation).
+    let _ = opts;
+    let drive = &scenario.spec.robot.drive;
+    let slip = if drive.slip_sigma > 0.0 {
+        drive.slip_sigma
+    } else {
+        DEFAULT_SLIP_SIGMA
+    };
+    // The emulator's own slip is off: see `slip` for why it is applied to the odometry.
+    let settings = RigSettings {
+        slip_relative_std: 0.0,
+        slip_seed: 0,
+    };
+    let sensors = Arc::new(Mutex::new(SensorSuite::for_trial(scenario, trial)));
+    let stepper = SimulatedStepper::new(&StepperConfig::default())
+        .map_err(|e| anyhow::anyhow!("simulated stepper: {e}"))?;
+    let antenna = stepper.angle_probe();
+    let mut rig = Rig::start(
+        scenario,
+        trial,
+        dir,
+        settings,
+        Arc::clone(&sensors),
+        antenna,
+    )
+    .await?;
+    let xbee = rig
+        .take_xbee()
+        .context("the XBee driver was already taken")?;
+    let base = Arc::clone(&rig.base);
+    let outcome = match Mission::new(scenario, trial, slip, stepper, xbee, sensors, &base) {
+        Ok(mut mission) => {
+            let run = mission.run(&base).await;
+            run.map(|()| mission.finish())
+        }
+        Err(e) => Err(e),
+    };
+    drop(base);
+    rig.shutdown().await;
+    outcome
+}
+
+/// Sums for a root mean square.
+#[derive(Debug, Default, Clone, Copy)]
+struct Rms {
+    sq: f64,
+    n: usize,
+}
+
+impl Rms {
+    fn add(&mut self, e: f64) {
+        self.sq += e * e;
+        self.n += 1;
+    }
+    fn value(&self) -> Option<f64> {
+        (self.n > 0).then(|| (self.sq / self.n as f64).sqrt())
+    }
+}
+
+/// One trial's estimator, controller and bookkeeping.
+struct Mission {
+    rec: TrialRecorder,
+    /// The daemon's EKF-SLAM pipeline: filter, waypoint controller and sweep cycle.
+    pipeline: EkfSlamPipeline,
+    runner: ScanRunner<SimulatedStepper, NdRssiProbe>,
+    sensors: Arc<Mutex<SensorSuite>>,
+    /// True beacons: (address, position).
+    beacons: Vec<(u64, Point)>,
+    slip: f64,
+    odometry_slip: OdometrySlip,
+    duration: f64,
+    rssi_sigma_db: f64,
+    /// Mission time of one sweep: its `ND` rounds × [`ROUND_SECONDS`].
+    sweep_seconds: f64,
+    /// Mission clock, seconds: `ticks` SIP periods plus `sweep_seconds` per sweep.
+    t: f64,
+    ticks: u64,
+    dead_reckoning: Pose2,
+    odometry_error: Rms,
+    beacon_error: BTreeMap<u64, Rms>,
+    sweeps: usize,
+    /// Reconnections of the Pioneer driver (each rebases its odometry).
+    base_reconnects: u64,
+    odometry_heading_error: Rms,
+    /// The filter's pose error against its own covariance: heading error / σ_θ, and the
+    /// position NEES (2 degrees of freedom; `Rms` of its square root).
+    heading_z: Rms,
+    position_nees: Rms,
+    /// Sweep measurements against the truth: bearing error (deg) and its ratio to the σ
+    /// given to the filter; RSSI residual against eq. 2.7 (dB), its sum, and its ratio to σ.
+    bearing_error: Rms,
+    bearing_z: Rms,
+    rssi_residual: Rms,
+    rssi_residual_sum: f64,
+    rssi_z: Rms,
+}
+
+impl Mission {
+    fn new(
+        scenario: &Scenario,
+        trial: usize,
+        slip: f64,
+        stepper: SimulatedStepper,
+        xbee: rig::XBeeLink,
+        sensors: Arc<Mutex<SensorSuite>>,
+        base: &Arc<LockstepBase>,
+    ) -> anyhow::Result<Mission> {
+        let model = scenario.xbee_model();
+        let steps = scenario.spec.params.sweep_steps.unwrap_or(40).max(4);
+        // One reading's spread about its local mean: fast fading and, for whole-dBm readings,
+        // the rounding (uniform over 1 dB: variance 1/12).
+        let quantum = if model.integer_dbm { 1.0 / 12.0 } else { 0.0 };
+        let reading_sigma_db = (model.fast_sigma_db.powi(2) + quantum).sqrt().max(0.5);
+        // The fitted level of a sweep: its shadowing (held for the sweep, what an operator
+        // would calibrate from the seed's Table 4.1 spread) plus the fit's own error, about one
+        // reading's spread over the sweep's readings.
+        let readings = steps as f64 * f64::from(ND_ROUNDS_PER_STOP.max(1));
+        let rssi_sigma_db = model
+            .shadow_sigma_db
+            .hypot(reading_sigma_db / readings.sqrt());
+        let scan = ScanConfig {
+            plan: SweepPlanConfig {
+                step_deg: 360.0 / steps as f64,
+                ..SweepPlanConfig::default()
+            },
+            probes_per_stop: ND_ROUNDS_PER_STOP,
+            max_probe_failures: 3,
+            estimator: EstimatorConfig {
+                path_loss: PathLossModel {
+                    p_ref_dbm: model.p_ref_dbm,
+                    d_ref_m: 1.0,
+                    eta: model.eta,
+                    shadowing_sigma_db: model.shadow_sigma_db,
+                },
+                rssi_noise_sigma_db: reading_sigma_db,
+                pattern: Some(GainPattern::CosinePower(CosinePowerPattern {
+                    exponent: model.pattern.exponent,
+                    back_lobe_db: model.pattern.back_lobe_db,
+                })),
+                ..EstimatorConfig::default()
+            },
+        };
+        let rounds = steps as u64 * u64::from(ND_ROUNDS_PER_STOP.max(1));
+        let sweep_seconds = rounds as f64 * ROUND_SECONDS;
+        let sweep_ticks = (sweep_seconds / SIP_PERIOD_S).round() as u64;
+        let probe = NdRssiProbe::new(xbee, Arc::clone(base), rounds, sweep_ticks);
+        let runner = ScanRunner::new(stepper, probe, scan)
+            .map_err(|e| anyhow::anyhow!("sweep plan: {e}"))?;
+        let start = scenario.start_pose(trial);
+        // The pipeline the daemon runs, configured as an operator would for this robot: the
+        // scenario's path loss, the RSSI spread of its model, its waypoints and switching
+        // distance, and the odometry error as the wheel slip the trial applies.
+        let settings = EkfSlamSettings {
+            p_ref_dbm: model.p_ref_dbm,
+            path_loss_exponent: model.eta,
+            measurement: "rssi".into(),
+            sweep_step_deg: 360.0 / steps as f64,
+            waypoints: scenario.spec.waypoints.clone(),
+            start: [start.x, start.y, start.theta.to_degrees()],
+            sweep_every_s: SWEEP_EVERY_S,
+            rssi_sigma_db,
+            bearing_floor_deg: BEARING_FLOOR_DEG,
+            beacon_init_max_std_m: DELAYED_INIT_MAX_STD_M,
+            beacon_init_with_range: true,
+            beacon_init_pose_copies: true,
+            waypoint_switch_m: scenario.spec.params.waypoint_switch_m.unwrap_or(0.3),
+            wheel_slip: Some(WheelSlipSettings {
+                relative_sigma: slip,
+                track_m: EMULATOR_TRACK_M,
+                interval_s: SUBSTEP_S,
+            }),
+            ..EkfSlamSettings::default()
+        };
+        let pipeline = EkfSlamPipeline::new(&settings)
+            .map_err(|e| anyhow::anyhow!("EKF-SLAM pipeline: {e}"))?;
+        Ok(Mission {
+            rec: TrialRecorder::new(scenario, trial),
+            pipeline,
+            runner,
+            sensors,
+            beacons: scenario
+                .world
+                .beacons
+                .iter()
+                .map(|b| (b.address, b.position))
+                .collect(),
+            slip,
+            odometry_slip: OdometrySlip::new(
+                scenario.trial_seed(trial) ^ 0x5eed_5119,
+                slip,
+                EMULATOR_TRACK_M,
+                SUBSTEP_S,
+            ),
+            duration: scenario.spec.duration_s,
+            rssi_sigma_db,
+            sweep_seconds,
+            t: 0.0,
+            ticks: 0,
+            dead_reckoning: start,
+            odometry_error: Rms::default(),
+            beacon_error: BTreeMap::new(),
+            sweeps: 0,
+            base_reconnects: 0,
+            odometry_heading_error: Rms::default(),
+            heading_z: Rms::default(),
+            position_nees: Rms::default(),
+            bearing_error: Rms::default(),
+            bearing_z: Rms::default(),
+            rssi_residual: Rms::default(),
+            rssi_residual_sum: 0.0,
+            rssi_z: Rms::default(),
+        })
+    }
+
+    /// Records truth, estimate and the running error sums at the mission time.
+    fn record(&mut self, truth: Pose2) {
+        let est = self.pipeline.filter().pose();
+        self.rec.truth(self.t, truth);
+        self.rec.estimate(self.t, est);
+        let cov = self.pipeline.filter().pose_covariance();
+        if cov[(2, 2)] > 1e-12 {
+            self.heading_z
+                .add(angle_diff(est.theta, truth.theta) / cov[(2, 2)].sqrt());
+        }
+        let pxy = cov.fixed_view::<2, 2>(0, 0).into_owned();
+        if let Some(inv) = pxy.try_inverse().filter(|_| pxy.determinant() > 1e-18) {
+            let e = nalgebra::Vector2::new(est.x - truth.x, est.y - truth.y);
+            self.position_nees.add(e.dot(&(inv * e)).max(0.0).sqrt());
+        }
+        self.odometry_error
+            .add(self.dead_reckoning.distance(&truth));
+        self.odometry_heading_error
+            .add(angle_diff(self.dead_reckoning.theta, truth.theta));
+        for (id, p) in &self.beacons {
+            if let Some(b) = self.pipeline.filter().beacon(*id) {
+                let e = (b.position.x - p.x).hypot(b.position.y - p.y);
+                self.beacon_error.entry(*id).or_default().add(e);
+            }
+        }
+    }
+
+    /// The odometry event the daemon's base task would send: the trial's slipped odometry
+    /// (dead reckoning in the map frame; the pipeline only uses its increments), mission time.
+    fn odometry_event(&self, v: f64, w: f64) -> DeviceEvent {
+        DeviceEvent::Odometry {
+            device: "base".into(),
+            t: self.t,
+            pose: self.dead_reckoning,
+            v,
+            w,
+        }
+    }
+
+    async fn run(&mut self, base: &LockstepBase) -> anyhow::Result<()> {
+        // Let the link settle (first SIPs) before the mission starts.
+        let (mut first, mut state) = base.tick().await?;
+        for _ in 1..SETTLE_SIPS {
+            (first, state) = base.tick().await?;
+        }
+        let mut prev_odo = first.pose;
+        self.pipeline.handle(&self.odometry_event(first.v, first.w));
+        self.record(state.truth);
+        loop {
+            // One SIP period under the command sent at the end of the previous one.
+            let (o, state) = base.tick().await?;
+            let ground = o.pose.relative_to(&prev_odo);
+            prev_odo = o.pose;
+            self.ticks += 1;
+            self.t = self.ticks as f64 * SIP_PERIOD_S + self.sweeps as f64 * self.sweep_seconds;
+            let delta = self.odometry_slip.apply(&ground, SIP_PERIOD_S);
+            self.dead_reckoning = self.dead_reckoning.compose(&delta);
+            self.pipeline.handle(&self.odometry_event(o.v, o.w));
+            self.record(state.truth);
+            if self.t >= self.duration || self.pipeline.is_done() {
+                break;
+            }
+            let mut commanded = false;
+            for request in self.pipeline.take_requests() {
+                match request {
+                    Request::Velocity { v, w } => {
+                        base.set_velocity(v, w).await?;
+                        commanded = true;
+                    }
+                    Request::Sweep { heading_rad } => {
+                        // The sweep takes its ticks of the standing robot (the probe spreads
+                        // them over its rounds); the mission clock counts them as the sweep's
+                        // `sweep_seconds`.
+                        let result = self.sweep(heading_rad, state.truth).await?;
+                        self.t += self.sweep_seconds;
+                        self.pipeline.handle(&DeviceEvent::Sweep {
+                            device: "xbee".into(),
+                            t: self.t,
+                            result: Ok(result),
+                        });
+                        self.record(base.state().truth);
+                    }
+                }
+            }
+            if !commanded {
+                // Feeds the watchdog while the robot stands (stopping or after a sweep).
+                base.set_velocity(0.0, 0.0).await?;
+            }
+        }
+        base.set_velocity(0.0, 0.0).await?;
+        self.base_reconnects = base.client().stats().reconnects;
+        Ok(())
+    }
+
+    /// One reflector sweep at a standstill; `truth` (the pose during the sweep) only scores
+    /// the measurements against the scenario's beacons.
+    async fn sweep(&mut self, heading: f64, truth: Pose2) -> anyhow::Result<Vec<SweptBeacon>> {
+        if let Ok(mut s) = self.sensors.lock() {
+            s.begin_xbee_sweep();
+        }
+        self.runner.probe_mut().begin_sweep();
+        let result = self
+            .runner
+            .scan(move || heading)
+            .await
+            .map_err(|e| anyhow::anyhow!("bearing sweep: {e}"))?;
+        self.runner.probe_mut().finish_sweep().await?;
+        self.sweeps += 1;
+        let floor = BEARING_FLOOR_DEG.to_radians();
+        let path_loss = self.pipeline.filter().config().path_loss;
+        let swept = rfloc_daemon::devices::swept_beacons(&result.report);
+        for b in &swept {
+            let sigma_b = (b.bearing_variance_rad2 + floor * floor).sqrt();
+            if let Some((_, p)) = self.beacons.iter().find(|(a, _)| *a == b.id) {
+                let (dx, dy) = (p.x - truth.x, p.y - truth.y);
+                let eb = angle_diff(b.bearing_rad, angle_diff(dy.atan2(dx), truth.theta));
+                let er = b.peak_rssi_dbm - path_loss.rssi_at(dx.hypot(dy));
+                self.bearing_error.add(eb.to_degrees());
+                self.bearing_z.add(eb / sigma_b);
+                self.rssi_residual.add(er);
+                self.rssi_residual_sum += er;
+                self.rssi_z.add(er / self.rssi_sigma_db);
+            }
+        }
+        tracing::debug!(
+            sweep = self.sweeps,
+            heard = result.report.beacons.len(),
+            used = swept.len(),
+            "sweep"
+        );
+        for (k, (id, p)) in self.beacons.iter().enumerate() {
+            if let Some(b) = self.pipeline.filter().beacon(*id) {
+                let e = (b.position.x - p.x).hypot(b.position.y - p.y);
+                let sd = b.covariance.trace().sqrt();
+                tracing::debug!(
+                    sweep = self.sweeps,
+                    beacon = k + 1,
+                    error_m = e,
+                    sd_m = sd,
+                    "map"
+                );
+            }
+        }
+        Ok(swept)
+    }
+
+    /// Final metrics: beacon RMSE over the run (from each beacon's first mapping), final beacon
+    /// errors, the odometry-only error and counters.
+    fn finish(mut self) -> TrialRecorder {
+        for (k, (id, p)) in self.beacons.iter().enumerate() {
+            let n = k + 1;
+            if let Some(rms) = self.beacon_error.get(id).and_then(Rms::value) {
+                self.rec.metric(&format!("beacon_rmse_{n}_m"), rms);
+            }
+            if let Some(b) = self.pipeline.filter().beacon(*id) {
+                let e = (b.position.x - p.x).hypot(b.position.y - p.y);
+                self.rec.metric(&format!("beacon_final_{n}_m"), e);
+                self.rec
+                    .marks
+                    .push((format!("b{n}"), Point::new(b.position.x, b.position.y)));
+            }
+        }
+        if let Some(v) = self.odometry_error.value() {
+            self.rec.metric("odometry_rmse_m", v);
+        }
+        if let Some(v) = self.odometry_heading_error.value() {
+            self.rec.metric("odometry_rmse_theta_rad", v);
+        }
+        let counters = self.pipeline.counters();
+        if counters.nis_dof > 0 {
+            self.rec
+                .metric("nis_per_dof", counters.nis_sum / counters.nis_dof as f64);
+        }
+        for (name, rms) in [
+            ("bearing_error_rms_deg", self.bearing_error),
+            ("bearing_z_rms", self.bearing_z),
+            ("rssi_residual_rms_db", self.rssi_residual),
+            ("rssi_z_rms", self.rssi_z),
+            ("heading_z_rms", self.heading_z),
+        ] {
+            if let Some(v) = rms.value() {
+                self.rec.metric(name, v);
+            }
+        }
+        if let Some(v) = self.position_nees.value() {
+            self.rec.metric("position_nees_per_dof", v * v / 2.0);
+        }
+        if self.rssi_residual.n > 0 {
+            self.rec.metric(
+                "rssi_residual_mean_db",
+                self.rssi_residual_sum / self.rssi_residual.n as f64,
+            );
+        }
+        self.rec.metric(
+            "beacons_mapped",
+            self.pipeline.filter().beacon_count() as f64,
+        );
+        self.rec.metric("sweeps", self.sweeps as f64);
+        self.rec
+            .metric("base_reconnects", self.base_reconnects as f64);
+        self.rec
+            .metric("observations", counters.observations as f64);
+        let probe = self.runner.probe_mut();
+        self.rec
+            .metric("xbee_dropped_bytes", probe.dropped_bytes() as f64);
+        self.rec
+            .metric("xbee_rejected_records", probe.rejected_records() as f64);
+        self.rec
+            .metric("gate_rejections", counters.gate_rejections as f64);
+        self.rec.metric("mission_time_s", self.t);
+        self.rec.metric("slip_sigma", self.slip);
+        let done = self.pipeline.is_done();
+        self.rec
+            .metric("waypoints_done", if done { 1.0 } else { 0.0 });
+        self.rec.set_success(done);
+        self.rec
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rfloc_ekfslam::WheelSlipNoise;
+
+    /// The covariance the pipeline is told (`WheelSlipNoise`) is the spread the trial's
+    /// odometry slip produces.
+    #[test]
+    fn the_pipeline_noise_model_is_the_applied_slip() {
+        let sigma = 0.05;
+        let mut slip = OdometrySlip::new(3, sigma, EMULATOR_TRACK_M, SUBSTEP_S);
+        let step = slip::arc(0.03, 0.02);
+        let n = 40_000;
+        let (mut sx, mut sth, mut sxth) = (0.0, 0.0, 0.0);
+        for _ in 0..n {
+            let d = slip.apply(&step, SIP_PERIOD_S);
+            let (ex, eth) = (d.x - step.x, d.theta - step.theta);
+            sx += ex * ex;
+            sth += eth * eth;
+            sxth += ex * eth;
+        }
+        let k = f64::from(n);
+        let model = WheelSlipNoise {
+            relative_sigma: sigma,
+            track_m: EMULATOR_TRACK_M,
+            interval_s: SUBSTEP_S,
+        };
+        let cov = model.increment_covariance(&step, SIP_PERIOD_S);
+        let ratio_x = cov[(0, 0)] / (sx / k);
+        let ratio_th = cov[(2, 2)] / (sth / k);
+        assert!((ratio_x - 1.0).abs() < 0.05, "{ratio_x}");
+        assert!((ratio_th - 1.0).abs() < 0.05, "{ratio_th}");
+        // Turning left loads the right wheel more: along and heading errors correlate.
+        assert!(cov[(0, 2)] > 0.0 && sxth > 0.0);
+    }
+}
