@@ -241,6 +241,7 @@ impl Replayed {
 
     /// Waits for one observation or the end of the task.
     async fn fill(&mut self) {
+        tracing::trace!(device = %self.name, asked = self.asked.load(Ordering::Acquire), answered = self.answered, "replay waits for the device");
         while self.buffer.is_empty() && !self.closed {
             match self.rx.recv().await {
                 Some(DeviceEvent::Status { state, detail, .. }) => {

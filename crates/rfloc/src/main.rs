@@ -127,10 +127,6 @@ fn report(errors: &ConfigErrors) -> ExitCode {
     for e in &errors.0 {
         eprintln!("{e}");
     }
-    eprintln!(
-        "rfloc: {} configuration error(s)",
-        errors.0.len()
-    );
     ExitCode::from(EX_CONFIG)
 }
 

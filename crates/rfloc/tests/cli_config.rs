@@ -59,6 +59,7 @@ kind = "kts"
 
 [estimator]
 pipeline = "hfgrid"
+tag_field = "seed002-test"
 "#;
 
 #[test]
@@ -123,4 +124,44 @@ fn unreadable_file_exits_78() {
     let (code, text) = validate(Path::new("/nonexistent/robot.toml"), &[]);
     assert_eq!(code, 78);
     assert!(text.contains("/nonexistent/robot.toml"), "{text}");
+}
+
+#[test]
+fn every_error_of_a_file_is_reported_with_its_line_and_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = BASE
+        .replace("name = \"t\"", "name = \"t\"\ncolour = \"red\"")
+        .replace("kind = \"kts\"", "kind = \"kts\"\nresync_after_s = 1e300")
+        + "\n[pose]\nprecision = 100000\nclient_queue = 0\n";
+    let (code, text) = validate(&write(&dir, "many.toml", &text), &[]);
+    assert_eq!(code, 78, "{text}");
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines.len(), 4, "{text}");
+    assert!(lines[0].starts_with("many.toml:3:1: key `robot.colour`") || lines[0].contains("many.toml:3:1: key `robot.colour`"), "{text}");
+    assert!(lines[1].contains(":10:1: key `device[0].driver.resync_after_s`"), "{text}");
+    assert!(lines[2].contains(":17:1: key `pose.precision`"), "{text}");
+    assert!(lines[3].contains(":18:1: key `pose.client_queue`"), "{text}");
+}
+
+#[test]
+fn an_hf_robot_without_its_floor_tags_is_refused() {
+    let shipped = std::fs::read_to_string(workspace().join("config/hf-agv.toml")).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let no_map: String = shipped
+        .lines()
+        .filter(|l| !l.starts_with("tag_map"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    assert_ne!(no_map, shipped);
+    let (code, text) = validate(&write(&dir, "hf.toml", &no_map), &["--no-device-check"]);
+    assert_eq!(code, 78, "{text}");
+    assert!(text.contains("key `estimator.pipeline`") && text.contains("tags"), "{text}");
+    // A UID that is not hex is refused at validate, not warned about at run time.
+    let bad = BASE.replace(
+        "tag_field = \"seed002-test\"",
+        "[[estimator.tag]]\nuid = \"E0040150-3A5BD691\"\nx = 0.1\ny = 0.2",
+    );
+    let (code, text) = validate(&write(&dir, "uid.toml", &bad), &[]);
+    assert_eq!(code, 78, "{text}");
+    assert!(text.contains("key `estimator.tag[0].uid`"), "{text}");
 }

@@ -148,13 +148,12 @@ impl RobotConfig {
             diag.at_span(e.span(), None, e.message().trim().to_string());
         }
         let cfg = if diag.is_clean() {
-            parse_root(&mut diag, text, file, dir, opts)
+            let parts = parse_root(&mut diag, dir, opts);
+            parts.check(&mut diag, opts, dir);
+            parts.assemble(text, file, dir)
         } else {
             None
         };
-        if let Some(cfg) = &cfg {
-            cfg.check(&mut diag, opts);
-        }
         diag.finish()?;
         cfg.ok_or_else(|| {
             ConfigErrors(vec![ConfigError {
@@ -181,88 +180,142 @@ impl RobotConfig {
         )
     }
 
-    /// Semantic checks that TOML types cannot express.
-    fn check(&self, diag: &mut Diagnostics<'_>, opts: &LoadOptions<'_>) {
-        let env = CheckEnv {
-            check_files: opts.check_files,
-            config_dir: self.source.dir.as_deref(),
-            simulated: self.simulation,
-        };
-        let mut names = std::collections::HashSet::new();
-        for (i, d) in self.devices.iter().enumerate() {
-            let mut c = Checks::new(diag, format!("device[{i}]"));
-            if !names.insert(d.name.as_str()) {
-                c.error("name", format!("duplicate device name {:?}", d.name));
-            }
-            if d.name.is_empty()
-                || !d
-                    .name
-                    .chars()
-                    .all(|ch| ch.is_ascii_alphanumeric() || "-_.".contains(ch))
-                || d.name.starts_with('.')
-            {
-                c.error(
-                    "name",
-                    format!("{:?} is not a device name (letters, digits, - _ .; it names the capture file)", d.name),
-                );
-            }
-            c.positive("stale_after_s", d.stale_after(), 86_400.0, " s");
-            check_link(d, &mut c, &env, opts);
-            d.driver.check(&mut c.nested("driver"), &env);
-        }
-        for need in self.estimator.required_drivers() {
-            if !self.devices.iter().any(|d| d.driver.kind() == *need) {
-                diag.error(
-                    "estimator.pipeline",
-                    format!(
-                        "pipeline {:?} needs a device with driver kind {:?}",
-                        self.estimator.name(),
-                        need
-                    ),
-                );
-            }
-        }
-        let est_env = estimator::EstimatorEnv {
-            config_dir: self.source.dir.as_deref(),
-            state_dir: self.state.dir.as_deref(),
-            check_files: opts.check_files,
-        };
-        self.estimator
-            .check(&mut Checks::new(diag, "estimator"), &est_env);
-        if let EstimatorConfig::Emitter(_) = &self.estimator {
-            self.check_emitter_receivers(diag);
-        }
-        self.pose.check(&mut Checks::new(diag, "pose"));
-        self.log.check(&mut Checks::new(diag, "log"));
-    }
-
-    fn check_emitter_receivers(&self, diag: &mut Diagnostics<'_>) {
-        let sides: Vec<AntennaSide> = self
-            .devices
-            .iter()
-            .filter_map(|d| d.driver.settings::<crate::devices::xbee::Xbee>())
-            .filter(|x| x.role == XbeeRole::EmitterReceiver)
-            .filter_map(|x| x.antenna)
-            .collect();
-        for side in [
-            AntennaSide::Front,
-            AntennaSide::Left,
-            AntennaSide::Back,
-            AntennaSide::Right,
-        ] {
-            if sides.iter().filter(|s| **s == side).count() != 1 {
-                diag.error(
-                    "estimator.pipeline",
-                    format!("pipeline \"emitter\" needs exactly one XBee with role = \"emitter_receiver\" and antenna = {:?}", side.as_str()),
-                );
-            }
-        }
-    }
-
     /// A device by name.
     #[must_use]
     pub fn device(&self, name: &str) -> Option<&DeviceConfig> {
         self.devices.iter().find(|d| d.name == name)
+    }
+}
+
+/// The sections of a file as far as they parsed: each is checked on its own, so that one bad
+/// section does not hide the errors of the others.
+struct Parts {
+    robot: Option<RobotSection>,
+    devices: Option<Vec<DeviceConfig>>,
+    estimator: Option<EstimatorConfig>,
+    pose: Option<PoseOutputConfig>,
+    log: Option<LogConfig>,
+    state: Option<StateConfig>,
+    simulation: bool,
+}
+
+impl Parts {
+    /// Semantic checks that TOML types cannot express.
+    fn check(&self, diag: &mut Diagnostics<'_>, opts: &LoadOptions<'_>, dir: Option<&Path>) {
+        let env = CheckEnv {
+            check_files: opts.check_files,
+            config_dir: dir,
+            simulated: self.simulation,
+        };
+        if let Some(devices) = &self.devices {
+            check_devices(devices, diag, &env, opts);
+        }
+        if let Some(estimator) = &self.estimator {
+            if let Some(devices) = &self.devices {
+                for need in estimator.required_drivers() {
+                    if !devices.iter().any(|d| d.driver.kind() == *need) {
+                        diag.error(
+                            "estimator.pipeline",
+                            format!(
+                                "pipeline {:?} needs a device with driver kind {:?}",
+                                estimator.name(),
+                                need
+                            ),
+                        );
+                    }
+                }
+                if let EstimatorConfig::Emitter(_) = estimator {
+                    check_emitter_receivers(devices, diag);
+                }
+            }
+            let est_env = estimator::EstimatorEnv {
+                config_dir: dir,
+                state_dir: self.state.as_ref().and_then(|s| s.dir.as_deref()),
+                check_files: opts.check_files,
+            };
+            estimator.check(&mut Checks::new(diag, "estimator"), &est_env);
+        }
+        if let Some(pose) = &self.pose {
+            pose.check(&mut Checks::new(diag, "pose"));
+        }
+        if let Some(log) = &self.log {
+            log.check(&mut Checks::new(diag, "log"));
+        }
+    }
+
+    fn assemble(self, text: &str, file: &str, dir: Option<&Path>) -> Option<RobotConfig> {
+        Some(RobotConfig {
+            robot: self.robot?,
+            devices: self.devices?,
+            estimator: self.estimator?,
+            pose: self.pose?,
+            log: self.log?,
+            state: self.state?,
+            simulation: self.simulation,
+            source: Arc::new(ConfigSource {
+                file: file.to_string(),
+                text: text.to_string(),
+                dir: dir.map(Path::to_path_buf),
+            }),
+        })
+    }
+}
+
+fn check_devices(
+    devices: &[DeviceConfig],
+    diag: &mut Diagnostics<'_>,
+    env: &CheckEnv<'_>,
+    opts: &LoadOptions<'_>,
+) {
+    let mut names = std::collections::HashSet::new();
+    for (i, d) in devices.iter().enumerate() {
+        let mut c = Checks::new(diag, format!("device[{i}]"));
+        if !names.insert(d.name.as_str()) {
+            c.error("name", format!("duplicate device name {:?}", d.name));
+        }
+        if d.name.is_empty()
+            || !d
+                .name
+                .chars()
+                .all(|ch| ch.is_ascii_alphanumeric() || "-_.".contains(ch))
+            || d.name.starts_with('.')
+        {
+            c.error(
+                "name",
+                format!(
+                    "{:?} is not a device name (letters, digits, - _ .; it names the capture file)",
+                    d.name
+                ),
+            );
+        }
+        c.positive("stale_after_s", d.stale_after(), 86_400.0, " s");
+        check_link(d, &mut c, env, opts);
+        d.driver.check(&mut c.nested("driver"), env);
+    }
+}
+
+fn check_emitter_receivers(devices: &[DeviceConfig], diag: &mut Diagnostics<'_>) {
+    let sides: Vec<AntennaSide> = devices
+        .iter()
+        .filter_map(|d| d.driver.settings::<crate::devices::xbee::Xbee>())
+        .filter(|x| x.role == XbeeRole::EmitterReceiver)
+        .filter_map(|x| x.antenna)
+        .collect();
+    for side in [
+        AntennaSide::Front,
+        AntennaSide::Left,
+        AntennaSide::Back,
+        AntennaSide::Right,
+    ] {
+        if sides.iter().filter(|s| **s == side).count() != 1 {
+            diag.error(
+                "estimator.pipeline",
+                format!(
+                    "pipeline \"emitter\" needs exactly one XBee with role = \"emitter_receiver\" and antenna = {:?}",
+                    side.as_str()
+                ),
+            );
+        }
     }
 }
 
@@ -291,15 +344,20 @@ fn check_link(d: &DeviceConfig, c: &mut Checks<'_, '_>, env: &CheckEnv<'_>, opts
     }
 }
 
-fn parse_root<'i>(
-    diag: &mut Diagnostics<'i>,
-    text: &str,
-    file: &str,
-    dir: Option<&Path>,
-    opts: &LoadOptions<'_>,
-) -> Option<RobotConfig> {
+fn parse_root<'i>(diag: &mut Diagnostics<'i>, dir: Option<&Path>, opts: &LoadOptions<'_>) -> Parts {
     let root = diag.root();
-    let table = diag::table(root)?;
+    let mut parts = Parts {
+        robot: None,
+        devices: None,
+        estimator: None,
+        pose: None,
+        log: None,
+        state: None,
+        simulation: false,
+    };
+    let Some(table) = diag::table(root) else {
+        return parts;
+    };
     let mut simulation = false;
     for (key, node) in table {
         let name = key.get_ref().as_ref();
@@ -359,21 +417,14 @@ fn parse_root<'i>(
         Some(n) => diag.deserialize::<StateConfig>("state", n),
         None => Some(StateConfig::default()),
     };
-    let devices = parse_devices(diag, root);
-    Some(RobotConfig {
-        robot: robot?,
-        devices: devices?,
-        estimator: estimator?,
-        pose: pose?,
-        log: log?,
-        state: state?,
-        simulation,
-        source: Arc::new(ConfigSource {
-            file: file.to_string(),
-            text: text.to_string(),
-            dir: dir.map(Path::to_path_buf),
-        }),
-    })
+    parts.devices = parse_devices(diag, root);
+    parts.robot = robot;
+    parts.estimator = estimator;
+    parts.pose = pose;
+    parts.log = log;
+    parts.state = state;
+    parts.simulation = simulation;
+    parts
 }
 
 fn parse_devices<'i>(diag: &mut Diagnostics<'i>, root: &Node<'i>) -> Option<Vec<DeviceConfig>> {

@@ -159,8 +159,27 @@ async fn run(ctx: DeviceContext, settings: AriaSettings) {
                 }
                 cmd = next_command(&mut commands) => {
                     if let Some(Request::Velocity { v, w }) = cmd {
-                        if let Err(e) = client.set_velocity(v, w).await {
-                            tracing::warn!(error = %e, "velocity command failed");
+                        // The client task may be waiting for room in the odometry queue before
+                        // it takes the command: keep draining it meanwhile.
+                        let command = client.set_velocity(v, w);
+                        tokio::pin!(command);
+                        loop {
+                            tokio::select! {
+                                r = &mut command => {
+                                    if let Err(e) = r {
+                                        tracing::warn!(error = %e, "velocity command failed");
+                                    }
+                                    break;
+                                }
+                                o = odometry.recv() => {
+                                    let Some(o) = o else { break };
+                                    for ev in observer.observe(ctx.name(), &o) {
+                                        if !ctx.send(ev).await {
+                                            return;
+                                        }
+                                    }
+                                }
+                            }
                         }
                     }
                 }

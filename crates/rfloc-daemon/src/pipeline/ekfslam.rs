@@ -387,12 +387,7 @@ mod tests {
     use rfloc_pose::EstimateMode;
 
     fn settings(waypoints: Vec<[f64; 2]>) -> EkfSlamSettings {
-        let text = "pipeline = \"ekfslam\"\n";
-        let mut s: EkfSlamSettings =
-            match toml::from_str::<crate::config::EstimatorConfig>(text).unwrap() {
-                crate::config::EstimatorConfig::Ekfslam(s) => s,
-                other => panic!("{other:?}"),
-            };
+        let mut s: EkfSlamSettings = toml::from_str("").unwrap();
         assert_eq!(
             format!("{s:?}"),
             format!("{:?}", EkfSlamSettings::default()),

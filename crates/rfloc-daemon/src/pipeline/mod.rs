@@ -132,7 +132,7 @@ mod tests {
             "",
         );
         assert_ne!(plain, text);
-        let cfg = crate::config::RobotConfig::parse(&plain, path).unwrap();
+        let cfg = crate::config::RobotConfig::parse(&plain, path, None).unwrap();
         assert!(scan_config(&cfg.estimator).estimator.pattern.is_none());
     }
 }

@@ -69,11 +69,11 @@ mod tests {
         let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
         let path = root.join("config/sim-emitter.toml");
         let text = std::fs::read_to_string(&path).unwrap();
-        let cfg = rfloc_daemon::config::RobotConfig::parse(&text, "sim-emitter.toml").unwrap();
+        let cfg = rfloc_daemon::config::RobotConfig::parse(&text, "sim-emitter.toml", None).unwrap();
         let rfloc_daemon::config::EstimatorConfig::Emitter(e) = &cfg.estimator else {
             panic!("not an emitter pipeline");
         };
-        let sim = cfg.simulation.as_ref().unwrap();
+        let sim = crate::sim::SimulationConfig::of(&cfg).unwrap();
         let scenario =
             rfloc_sim::Scenario::load(&root.join("config").join(sim.scenario.as_ref().unwrap()))
                 .unwrap();
