@@ -171,17 +171,6 @@ impl Worker {
                 for request in requests {
                     route(&self.routes, request);
                 }
-                for target in targets {
-                    match message::target_json(&target, &self.format) {
-                        Ok(line) => {
-                            if let Some(hub) = &self.outputs.hub {
-                                hub.publish_target(line.clone());
-                            }
-                            self.emit(&line);
-                        }
-                        Err(e) => tracing::warn!(error = %e, "target not published"),
-                    }
-                }
                 if let Some(mut est) = estimate {
                     if est.mode == EstimateMode::Fix && self.any_stale(&last_seen, t) {
                         est.mode = EstimateMode::Degraded;
@@ -202,6 +191,17 @@ impl Worker {
                                 tracing::warn!(error = %e, count = non_finite, "estimate not published");
                             }
                         }
+                    }
+                }
+                for target in targets {
+                    match message::target_json(&target, &self.format) {
+                        Ok(line) => {
+                            if let Some(hub) = &self.outputs.hub {
+                                hub.publish_target(line.clone());
+                            }
+                            self.emit(&line);
+                        }
+                        Err(e) => tracing::warn!(error = %e, "target not published"),
                     }
                 }
             }

@@ -339,6 +339,7 @@ pub async fn replay_lines(dir: &Path, opts: &ReplayOptions) -> anyhow::Result<Ve
             LinkSource::Replay {
                 sessions: std::sync::Mutex::new(sessions(&rec.capture)),
                 mode: device.driver.replay_mode(),
+                marks: marks(&rec.capture).map(|(_, m)| m.to_string()).collect(),
             },
             cfg.and_then(|c| c.source.dir.clone()),
             1.0,

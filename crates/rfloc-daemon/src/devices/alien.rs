@@ -143,7 +143,14 @@ fn password(ctx: &DeviceContext, settings: &AlienSettings) -> Result<String, Str
 }
 
 async fn run(ctx: DeviceContext, settings: AlienSettings) {
-    let password = match password(&ctx, &settings) {
+    // A replay sends what the capture holds in place of the password.
+    let password = match password(&ctx, &settings).or_else(|e| {
+        if ctx.replaying() {
+            Ok(String::from_utf8_lossy(rfloc_transport::REDACTED).into_owned())
+        } else {
+            Err(e)
+        }
+    }) {
         Ok(p) => p,
         Err(e) => {
             tracing::error!(error = %e, "UHF reader not started");
@@ -178,11 +185,20 @@ async fn run(ctx: DeviceContext, settings: AlienSettings) {
         Backoff::default(),
     );
     let period = Duration::from_secs_f64(POLL_PERIOD_S / ctx.time_scale.max(1e-6));
-    let reads = settings.reads_per_snapshot.max(1);
+    // A replay averages as many reads per snapshot as the recording marks.
+    let mut recorded_reads: std::collections::VecDeque<usize> = ctx
+        .recorded_marks()
+        .iter()
+        .filter_map(|m| parse_snapshot_mark(m))
+        .collect();
+    let configured = settings.reads_per_snapshot.max(1);
     let mut connected = false;
     ctx.status(DeviceState::Connecting, "login").await;
     while !ctx.stop.is_cancelled() {
         // Average `reads` polls.
+        let reads = recorded_reads
+            .pop_front()
+            .map_or(configured, |n| u32::try_from(n).unwrap_or(configured));
         let mut polls: Vec<Vec<(String, f64)>> = Vec::with_capacity(reads as usize);
         let mut t = 0.0;
         let mut failed = None;
@@ -224,7 +240,7 @@ async fn run(ctx: DeviceContext, settings: AlienSettings) {
             connected = true;
             ctx.status(
                 DeviceState::Connected,
-                format!("polling, {reads} read(s) per snapshot"),
+                format!("polling, {configured} read(s) per snapshot"),
             )
             .await;
         }

@@ -38,6 +38,9 @@ pub enum LinkSource {
     Replay {
         sessions: Mutex<VecDeque<Capture>>,
         mode: ReplayMode,
+        /// The marks the device task wrote into its capture (text after `mark `), in order: what
+        /// it decided that the bytes alone do not tell (how many reads a snapshot averaged).
+        marks: Vec<String>,
     },
 }
 
@@ -126,6 +129,15 @@ impl DeviceContext {
     #[must_use]
     pub fn replaying(&self) -> bool {
         matches!(*self.links, LinkSource::Replay { .. })
+    }
+
+    /// The marks of the recording being replayed (empty when live).
+    #[must_use]
+    pub fn recorded_marks(&self) -> &[String] {
+        match &*self.links {
+            LinkSource::Replay { marks, .. } => marks,
+            LinkSource::Live { .. } => &[],
+        }
     }
 
     /// True once a replay has handed out its last recorded session: the task should end.
@@ -234,7 +246,7 @@ impl DeviceContext {
                     sink,
                 )))
             }
-            LinkSource::Replay { sessions, mode } => {
+            LinkSource::Replay { sessions, mode, .. } => {
                 let next = sessions
                     .lock()
                     .map_err(|_| anyhow::anyhow!("replay sessions poisoned"))?
