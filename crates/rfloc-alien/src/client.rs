@@ -119,6 +119,7 @@ pub struct AlienClient<T> {
     frames: VecDeque<Frame>,
     config: AlienConfig,
     format: FormatTracker,
+    echo: EchoFilter,
     clock: SharedClock,
     stats: AlienStats,
     last_io: Instant,
@@ -144,6 +145,7 @@ where
             frames: VecDeque::new(),
             config,
             format: FormatTracker::default(),
+            echo: EchoFilter::default(),
             clock,
             stats: AlienStats::default(),
             last_io: Instant::now(),
@@ -162,6 +164,12 @@ where
             dropped_bytes: self.framer.dropped_bytes(),
             ..self.stats
         }
+    }
+
+    /// Whether the reader echoes commands, as learned from the replies so far.
+    #[must_use]
+    pub fn echo_state(&self) -> EchoState {
+        self.echo.state()
     }
 
     /// The TagList format the client parses with (follows `TagListFormat`/`…CustomFormat` sets).
@@ -317,7 +325,7 @@ where
                 Frame::Overlong(_) => self.stats.stray_frames += 1,
             }
         }
-        let body = strip_echo(&body, cmd);
+        let body = self.echo.strip(&body, cmd);
         if let Reply::Error { code, text } = parse_reply(&body) {
             self.stats.reader_errors += 1;
             tracing::warn!(command = cmd, ?code, %text, "alien: reader error");
@@ -471,18 +479,65 @@ fn frame_text(f: &Frame) -> String {
     }
 }
 
-/// Removes an echoed command line at the start of a body (interactive mode, or a reader that
-/// echoes anyway).
-pub(crate) fn strip_echo(body: &str, cmd: &str) -> String {
-    let trimmed = body.trim_start_matches(['\r', '\n']);
-    let (first, rest) = match trimmed.find(['\r', '\n']) {
-        Some(i) => trimmed.split_at(i),
-        None => (trimmed, ""),
-    };
-    if !cmd.trim().is_empty() && first.trim().eq_ignore_ascii_case(cmd.trim()) {
-        rest.trim_start_matches(['\r', '\n']).to_string()
-    } else {
-        body.to_string()
+/// Whether the reader echoes commands, as learned from the replies so far.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+pub enum EchoState {
+    /// No exchange has told yet.
+    #[default]
+    Unknown,
+    /// A reply began with a copy of its command followed by more text.
+    Echoes,
+    /// A reply to a non-empty command did not begin with the command.
+    Silent,
+}
+
+/// Removes command echoes from reply bodies, learning from the exchanges whether the reader
+/// echoes at all.
+///
+/// A reply whose first line equals the command is ambiguous: it is either the echo, or the
+/// reply itself (`PersistTime = 0` answers `PersistTime = 0` on a reader that does not echo).
+/// The first line is taken for an echo when the reader is known to echo, or, while that is not
+/// known yet, only when more text follows it (a second copy, or the reply). A reply to a
+/// non-empty command that does not begin with the command shows a reader that does not echo;
+/// from then on nothing is stripped. A reply that begins with its command and has more text
+/// after it shows a reader that echoes.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct EchoFilter {
+    state: EchoState,
+}
+
+impl EchoFilter {
+    pub(crate) fn state(&self) -> EchoState {
+        self.state
+    }
+
+    /// The reply body of `cmd` without its echo.
+    pub(crate) fn strip(&mut self, body: &str, cmd: &str) -> String {
+        let cmd = cmd.trim();
+        if cmd.is_empty() {
+            return body.to_string();
+        }
+        let trimmed = body.trim_start_matches(['\r', '\n']);
+        let (first, rest) = match trimmed.find(['\r', '\n']) {
+            Some(i) => trimmed.split_at(i),
+            None => (trimmed, ""),
+        };
+        let rest = rest.trim_start_matches(['\r', '\n']);
+        if !first.trim().eq_ignore_ascii_case(cmd) {
+            if self.state == EchoState::Unknown && !trimmed.is_empty() {
+                self.state = EchoState::Silent;
+            }
+            return body.to_string();
+        }
+        match self.state {
+            EchoState::Silent => body.to_string(),
+            EchoState::Echoes => rest.to_string(),
+            EchoState::Unknown if rest.is_empty() => body.to_string(),
+            EchoState::Unknown => {
+                self.state = EchoState::Echoes;
+                rest.to_string()
+            }
+        }
     }
 }
 
@@ -530,15 +585,45 @@ mod tests {
 
     #[test]
     fn echo_is_stripped_once() {
-        assert_eq!(strip_echo("t\r\n(No Tags)\r\n", "t"), "(No Tags)\r\n");
+        let mut f = EchoFilter::default();
+        assert_eq!(f.strip("t\r\n(No Tags)\r\n", "t"), "(No Tags)\r\n");
+        assert_eq!(f.state(), EchoState::Echoes);
         assert_eq!(
-            strip_echo("PersistTime = 0\r\nPersistTime = 0\r\n", "PersistTime = 0"),
+            f.strip("PersistTime = 0\r\nPersistTime = 0\r\n", "PersistTime = 0"),
             "PersistTime = 0\r\n"
         );
         assert_eq!(
-            strip_echo("ReaderName = x\r\n", "get ReaderName"),
+            f.strip("ReaderName = x\r\n", "get ReaderName"),
             "ReaderName = x\r\n"
         );
-        assert_eq!(strip_echo("", ""), "");
+        assert_eq!(
+            f.state(),
+            EchoState::Echoes,
+            "a reply is not a lack of echo once known"
+        );
+        assert_eq!(f.strip("", ""), "");
+    }
+
+    #[test]
+    fn a_reply_equal_to_its_command_is_kept_without_echo() {
+        // First exchange ambiguous: one line equal to the command is the reply.
+        let mut f = EchoFilter::default();
+        assert_eq!(
+            f.strip("PersistTime = 0\r\n", "PersistTime = 0"),
+            "PersistTime = 0\r\n"
+        );
+        assert_eq!(f.state(), EchoState::Unknown);
+        // A reply that does not start with its command: the reader does not echo.
+        assert_eq!(
+            f.strip("ReaderName = x\r\n", "get ReaderName"),
+            "ReaderName = x\r\n"
+        );
+        assert_eq!(f.state(), EchoState::Silent);
+        // From then on a first line equal to the command is the reply, even with more lines.
+        assert_eq!(f.strip("t\r\nt\r\n", "t"), "t\r\nt\r\n");
+        assert_eq!(
+            f.strip("PersistTime = 0\r\n", "persisttime = 0"),
+            "PersistTime = 0\r\n"
+        );
     }
 }

@@ -26,6 +26,19 @@ pub type TagField = Arc<dyn Fn() -> Vec<(Vec<u8>, f64)> + Send + Sync>;
 
 const BANNER: &str = "***********************************************\r\n*\r\n* Alien Technology : RFID Reader\r\n*\r\n***********************************************\r\n\r\n";
 
+/// When the emulated reader echoes a command line before its reply.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum EchoMode {
+    /// Interactive commands are echoed, prompt-suppressed (`\x01`) ones are not (an ALR-9900
+    /// on its telnet port).
+    #[default]
+    Interactive,
+    /// Never echo (a reader or terminal server with echo off).
+    Never,
+    /// Echo every command, suppressed or not.
+    Always,
+}
+
 /// Emulator options.
 #[derive(Debug, Clone)]
 pub struct EmulatorOptions {
@@ -38,6 +51,8 @@ pub struct EmulatorOptions {
     /// Time base of the reader clock (tag times, `get Time`); `None` = the host's monotonic
     /// time. A simulation passes its simulated clock so that replies depend on it alone.
     pub clock: Option<SharedClock>,
+    /// Echo of command lines.
+    pub echo: EchoMode,
 }
 
 impl Default for EmulatorOptions {
@@ -48,6 +63,7 @@ impl Default for EmulatorOptions {
             idle_timeout: None,
             busy_when_occupied: false,
             clock: None,
+            echo: EchoMode::default(),
         }
     }
 }
@@ -333,7 +349,12 @@ impl ReaderEmulator {
                 Outcome::Close(b) => (b, true),
             };
             let mut out = String::new();
-            if !suppressed {
+            let echo = match self.options.echo {
+                EchoMode::Interactive => !suppressed,
+                EchoMode::Never => false,
+                EchoMode::Always => true,
+            };
+            if echo {
                 out.push_str(cmd);
                 out.push_str("\r\n");
             }

@@ -32,10 +32,10 @@ mod snapshot;
 mod taglist;
 mod transcript;
 
-pub use client::{AlienClient, AlienConfig, AlienStats, LineEnding, PromptMode};
+pub use client::{AlienClient, AlienConfig, AlienStats, EchoState, LineEnding, PromptMode};
 pub use custom_format::{CustomFormat, CustomFormatError, FieldKind};
 #[cfg(feature = "emulator")]
-pub use emulator::{EmulatorOptions, ReaderEmulator, TagField};
+pub use emulator::{EchoMode, EmulatorOptions, ReaderEmulator, TagField};
 pub use error::{AlienError, SessionEnd};
 pub use format_tracker::FormatTracker;
 pub use framing::{Frame, Prompt, ReplyFramer, MAX_FRAME_LEN};

@@ -2,14 +2,15 @@
 //! paired in order into [`Exchange`]s, with the TagList format followed through the session.
 //!
 //! Pairing, as the client does it: every NUL-terminated reply answers the oldest line not yet
-//! answered; an echo of the command is removed. The login is recognised, not returned: after
+//! answered; an echo of the command is removed (learned as the client does: a reply equal to
+//! its command is kept unless the reader is known to echo). The login is recognised, not returned: after
 //! a `Username>` prompt the next two lines are the credentials; each is answered by a reply
 //! (prompts suppressed) or by the next prompt (interactive). Command prompts (`Alien>`) answer
 //! nothing.
 
 use std::collections::VecDeque;
 
-use crate::client::strip_echo;
+use crate::client::{EchoFilter, EchoState};
 use crate::format_tracker::FormatTracker;
 use crate::framing::{Frame, Prompt, ReplyFramer};
 use crate::reply::{parse_reply, Reply};
@@ -53,6 +54,7 @@ pub struct Transcript {
     pending: VecDeque<Line>,
     credentials_expected: usize,
     format: FormatTracker,
+    echo: EchoFilter,
     /// Replies with no line to answer, and frames too long to keep.
     pub stray_frames: u64,
     /// `TagListCustomFormat` values that did not compile.
@@ -70,6 +72,12 @@ impl Transcript {
     #[must_use]
     pub fn format(&self) -> &FormatTracker {
         &self.format
+    }
+
+    /// Whether the reader echoed commands, as learned from the replies so far.
+    #[must_use]
+    pub fn echo_state(&self) -> EchoState {
+        self.echo.state()
     }
 
     /// Bytes the client wrote.
@@ -108,7 +116,7 @@ impl Transcript {
             match frame {
                 Frame::Reply(body) => match self.pending.pop_front() {
                     Some(Line::Command(command)) => {
-                        let reply = strip_echo(&body, &command);
+                        let reply = self.echo.strip(&body, &command);
                         if !matches!(parse_reply(&reply), Reply::Error { .. })
                             && self.format.observe(&command).is_err()
                         {

@@ -33,7 +33,9 @@ use tracing::Instrument;
 use crate::command::{number, Arg, Command, LinkPhase};
 use crate::frame::{Frame, FrameDecoder};
 use crate::odometry::ConversionFactors;
-use crate::sip::{ConfigPacket, MotorSip, RobotIdentity, SipTail, SonarReading, StallBumpers};
+use crate::sip::{
+    ConfigMore, ConfigPacket, MotorSip, RobotIdentity, SipTail, SonarReading, StallBumpers,
+};
 use crate::sonar::{p3dx_discs, SonarDisc, NO_ECHO_M};
 
 /// Substeps of the kinematics per SIP period.
@@ -306,7 +308,61 @@ pub struct RobotEmulator {
     last_command_time: f64,
     encoders: (f64, f64),
     encoder_stream: bool,
+    /// BATTERYINFO (#62) ≥ 2: a battery packet (0xFA) after every SIP.
+    battery_stream: bool,
+    /// BATTEST (#250): battery voltage override, decivolts (0 = real).
+    battery_test_dv: u8,
+    /// HOSTBAUD (#50) and AUX1..3BAUD (#51-#53) codes, reported in CONFIG.
+    host_baud: u8,
+    aux_baud: [u8; 3],
+    /// BUMPSTALL (#44): 1 front, 2 rear, 3 both rings register a stall.
+    bump_stall: u8,
+    /// SOUNDTOG (#92): buzzer on.
+    sound_on: bool,
+    /// SONARCYCLE (#48), ms.
+    sonar_cycle_ms: u8,
 }
+
+/// Command numbers the emulator handles beyond the typed [`Command`] set (docs §4).
+mod extra {
+    /// MOVE (not emulated: acknowledged and ignored, see the docs).
+    pub const MOVE: u8 = 8;
+    /// ROTATE: rotational velocity, deg/s (a duplicate of RVEL in ARCOS).
+    pub const ROTATE: u8 = 9;
+    /// JOYINFO: joystick packets; the robot has no joystick, ignored.
+    pub const JOYINFO: u8 = 17;
+    /// ENCODER: 0 stop, 1 one packet, ≥ 2 continuous.
+    pub const ENCODER: u8 = 19;
+    /// DCHEAD: heading relative to the current heading setpoint, degrees.
+    pub const DCHEAD: u8 = 22;
+    /// IOREQUEST: I/O packets; not emulated, ignored.
+    pub const IOREQUEST: u8 = 40;
+    /// TTY2: a string for the AUX1 serial port; nothing is attached, ignored.
+    pub const TTY2: u8 = 42;
+    /// BUMPSTALL: 0 none, 1 front, 2 rear, 3 both rings stall.
+    pub const BUMPSTALL: u8 = 44;
+    /// SONARCYCLE: sonar cycle time, ms.
+    pub const SONARCYCLE: u8 = 48;
+    /// HOSTBAUD: host port baud code 0..4.
+    pub const HOSTBAUD: u8 = 50;
+    /// AUX1BAUD.
+    pub const AUX1BAUD: u8 = 51;
+    /// AUX3BAUD (AUX2BAUD is 52).
+    pub const AUX3BAUD: u8 = 53;
+    /// E_STALL enable; ignored.
+    pub const ESTALL: u8 = 56;
+    /// GYRO packets; the emulated P3-DX has no gyro, ignored.
+    pub const GYRO: u8 = 58;
+    /// BATTERYINFO: battery packets 0xFA, 0 stop, 1 one, 2 continuous.
+    pub const BATTERYINFO: u8 = 62;
+    /// SOUNDTOG: 1 buzzer on, 0 off.
+    pub const SOUNDTOG: u8 = 92;
+    /// BATTEST: fake battery voltage in decivolts, 0 = real.
+    pub const BATTEST: u8 = 250;
+}
+
+/// Packet type of the battery information packet (ARIA `ArRobotBatteryPacketReader`).
+pub const BATTERY_PACKET: u8 = 0xFA;
 
 impl std::fmt::Debug for RobotEmulator {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -364,6 +420,13 @@ impl RobotEmulator {
             last_command_time: 0.0,
             encoders: (0.0, 0.0),
             encoder_stream: false,
+            battery_stream: false,
+            battery_test_dv: 0,
+            host_baud: 0,
+            aux_baud: [0; 3],
+            bump_stall: 0,
+            sound_on: true,
+            sonar_cycle_ms: 40,
         }
     }
 
@@ -536,6 +599,11 @@ impl RobotEmulator {
                     out.extend_from_slice(&b);
                 }
             }
+            if self.battery_stream {
+                if let Ok(b) = self.battery_packet().encode() {
+                    out.extend_from_slice(&b);
+                }
+            }
             self.st.sips_sent += 1;
             self.st.tx_bytes += out.len() as u64;
             self.publish();
@@ -588,6 +656,7 @@ impl RobotEmulator {
         self.st.watchdog_tripped = false;
         self.sonar_on = false;
         self.encoder_stream = false;
+        self.battery_stream = false;
         self.trans_set = 0.0;
         self.rot_mode = RotMode::Velocity(0.0);
         self.wheels = None;
@@ -682,21 +751,72 @@ impl RobotEmulator {
             Command::Sonar(on) => self.sonar_on = on,
             Command::SetO => self.st.odometry = Pose2::default(),
             Command::Config => return vec![self.config_packet().to_frame()],
-            Command::Other {
-                number: 19,
-                arg: Arg::Int(n),
-            } => {
-                // ENCODER: 0 stop, 1 one packet, ≥ 2 continuous.
+            Command::Other { number, arg } => return self.handle_other(number, &arg),
+            Command::Sync0 | Command::Sync1 | Command::Sync2 => {}
+        }
+        Vec::new()
+    }
+
+    /// Commands outside the typed set (docs §4).
+    fn handle_other(&mut self, number: u8, arg: &Arg) -> Vec<Frame> {
+        let int = match arg {
+            Arg::Int(n) => Some(*n),
+            Arg::None => Some(0),
+            Arg::Str(_) => None,
+        };
+        match (number, int) {
+            (extra::ROTATE, Some(w)) => {
+                if self.wheels.take().is_some() {
+                    self.trans_set = 0.0;
+                }
+                self.rot_mode = RotMode::Velocity(f64::from(w));
+            }
+            (extra::DCHEAD, Some(deg)) => {
+                if self.wheels.take().is_some() {
+                    self.trans_set = 0.0;
+                }
+                let base = match self.rot_mode {
+                    RotMode::Heading(target) => target,
+                    RotMode::Velocity(_) => self.st.odometry.theta,
+                };
+                let target = base + f64::from(deg).to_radians();
+                self.rot_mode = RotMode::Heading(wrap_angle(target));
+            }
+            (extra::ENCODER, Some(n)) => {
                 self.encoder_stream = n >= 2;
                 if n == 1 {
                     return vec![self.encoder_packet()];
                 }
             }
-            Command::Other { number, .. } if number == number::CONFIG => {
+            (extra::BATTERYINFO, Some(n)) => {
+                self.battery_stream = n >= 2;
+                if n == 1 {
+                    return vec![self.battery_packet()];
+                }
+            }
+            (extra::BUMPSTALL, Some(n)) => self.bump_stall = (n & 3) as u8,
+            (extra::SOUNDTOG, Some(n)) => self.sound_on = n != 0,
+            (extra::SONARCYCLE, Some(n)) => {
+                self.sonar_cycle_ms = u8::try_from(n.clamp(0, 255)).unwrap_or(u8::MAX);
+            }
+            (extra::HOSTBAUD, Some(n)) if (0..=4).contains(&n) => self.host_baud = n as u8,
+            (extra::AUX1BAUD..=extra::AUX3BAUD, Some(n)) if (0..=4).contains(&n) => {
+                if let Some(b) = self.aux_baud.get_mut(usize::from(number - extra::AUX1BAUD)) {
+                    *b = n as u8;
+                }
+            }
+            (extra::BATTEST, Some(n)) => {
+                self.battery_test_dv = u8::try_from(n.clamp(0, 255)).unwrap_or(0);
+            }
+            (extra::MOVE | extra::JOYINFO | extra::IOREQUEST | extra::ESTALL | extra::GYRO, _)
+            | (extra::TTY2, _) => {
+                tracing::debug!(number, "emulator: command acknowledged, not emulated");
+            }
+            (number, _) if number == number::CONFIG => {
                 return vec![self.config_packet().to_frame()];
             }
-            other => {
-                tracing::debug!(command = ?other, "emulator: command not emulated");
+            (number, arg) => {
+                tracing::debug!(number, ?arg, "emulator: command not emulated");
                 self.st.ignored_commands += 1;
             }
         }
@@ -715,6 +835,9 @@ impl RobotEmulator {
                 self.st.open = true;
                 self.st.opens += 1;
                 self.st.motors_enabled = false;
+                // ARCOS (and MobileSim/AMRISim) start the sonar with the servers.
+                self.sonar_on = true;
+                self.sonar_next = 0;
                 self.last_command_time = self.st.sim_time;
                 Vec::new()
             }
@@ -837,6 +960,7 @@ impl RobotEmulator {
             (u.rem_euclid(0x8000)) as u16
         };
         let half_track = self.config.wheel_track_mm / 2.0;
+        let battery_dv = self.battery_dv();
         let w_rad = self.w_deg.to_radians();
         let left = (self.v_mm - w_rad * half_track) / f.vel_conv;
         let right = (self.v_mm + w_rad * half_track) / f.vel_conv;
@@ -874,7 +998,7 @@ impl RobotEmulator {
             th_raw: sat(self.st.odometry.theta / f.angle_conv),
             left_vel: sat(left),
             right_vel: sat(right),
-            battery_dv: self.config.battery_dv,
+            battery_dv,
             stall_bumpers: StallBumpers(stall),
             control: 0,
             flags,
@@ -886,7 +1010,7 @@ impl RobotEmulator {
             digin: 0,
             digout: 0,
             tail: SipTail {
-                battery_x10: Some(u16::from(self.config.battery_dv)),
+                battery_x10: Some(u16::from(battery_dv)),
                 charge_state: Some(0),
                 rot_vel: Some(sat(self.w_deg * 10.0)),
                 fault_flags: Some(0),
@@ -902,9 +1026,31 @@ impl RobotEmulator {
         Frame::new(0x90, p)
     }
 
+    /// Battery voltage in decivolts: the BATTEST override or the configured value.
+    fn battery_dv(&self) -> u8 {
+        if self.battery_test_dv > 0 {
+            self.battery_test_dv
+        } else {
+            self.config.battery_dv
+        }
+    }
+
+    /// The battery information packet (0xFA, ARIA `ArRobotBatteryPacketReader`): one battery of
+    /// five bytes (flags 1-3 zero, relative and absolute state of charge in percent, both
+    /// linear in the voltage from 11.0 V = 0 % to 12.8 V = 100 %; an emulator model, a P3-DX's
+    /// lead-acid batteries report no charge state of their own).
+    fn battery_packet(&self) -> Frame {
+        let volts = f64::from(self.battery_dv()) / 10.0;
+        let soc = ((volts - 11.0) / 1.8 * 100.0).round().clamp(0.0, 100.0) as u8;
+        Frame::new(BATTERY_PACKET, vec![1, 5, 0, 0, 0, soc, soc])
+    }
+
+    /// The CONFIG packet: every field ARIA's `ArRobotConfigPacketReader` reads (docs §5.3),
+    /// with the emulator's limits and current settings and plausible P3-DX values elsewhere.
     fn config_packet(&self) -> ConfigPacket {
         let c = &self.config;
         let u16s = |x: f64| x.round().clamp(0.0, f64::from(u16::MAX)) as u16;
+        let [aux1_baud, aux2_baud, aux3_baud] = self.aux_baud;
         ConfigPacket {
             class: c.identity.class.clone(),
             subclass: c.identity.subclass.clone(),
@@ -914,19 +1060,76 @@ impl RobotEmulator {
             trans_vel_top: u16s(c.trans_vel_top),
             rot_accel_top: u16s(c.rot_accel.max(c.rot_decel)),
             trans_accel_top: u16s(c.trans_accel.max(c.trans_decel)),
-            pwm_max: 0,
+            pwm_max: 1000,
             name: c.identity.name.clone(),
             sip_cycle_ms: u8::try_from(c.sip_period.as_millis()).unwrap_or(u8::MAX),
-            host_baud: 0,
-            aux1_baud: 0,
+            host_baud: self.host_baud,
+            aux1_baud,
             has_gripper: 0,
             front_sonar: 1,
             rear_sonar: 1,
             low_battery_dv: 110,
-            rev_count: 0,
+            rev_count: 16570,
             watchdog_ms: u16::try_from(c.watchdog.as_millis()).unwrap_or(u16::MAX),
+            more: Some(ConfigMore {
+                normal_motor_packets: 1,
+                stall_val: 200,
+                stall_count: 100,
+                joy_vel: 300,
+                joy_rot_vel: 50,
+                rot_vel_max: u16s(self.max_rv),
+                trans_vel_max: u16s(self.max_v),
+                rot_accel: u16s(self.accel.2),
+                rot_decel: u16s(self.accel.3),
+                rot_kp: 40,
+                rot_kv: 20,
+                rot_ki: 0,
+                trans_accel: u16s(self.accel.0),
+                trans_decel: u16s(self.accel.1),
+                trans_kp: 40,
+                trans_kv: 30,
+                trans_ki: 0,
+                front_bumps: 5,
+                rear_bumps: 5,
+                has_charger: 0,
+                sonar_cycle_ms: self.sonar_cycle_ms,
+                autobaud: 2,
+                gyro_type: 0,
+                drift_factor: 0,
+                aux2_baud,
+                aux3_baud,
+                ticks_mm: 128,
+                shutdown_voltage_dv: 105,
+                firmware_version: "rfloc-emulator".into(),
+                gyro_cw: 0,
+                gyro_ccw: 0,
+                kinematics_delay: 0,
+                lat_vel_top: 0,
+                lat_accel_top: 0,
+                lat_vel_max: 0,
+                lat_accel: 0,
+                lat_decel: 0,
+                powerbot_charge_threshold: 0,
+                pdb_port: 0,
+                gyro_rate_limit: 0,
+                high_temperature_shutdown: 0,
+                power_bits: 0,
+                battery_type: 0,
+                state_of_charge_low: 0,
+                state_of_charge_shutdown: 0,
+                bootloader_version: String::new(),
+                config_flags: 0,
+                gyro_fw_version: 0,
+            }),
             rest: Vec::new(),
         }
+    }
+
+    /// Whether the buzzer is on (SOUNDTOG) and which bumper rings register a stall
+    /// (BUMPSTALL), for tests.
+    #[must_use]
+    pub fn sound_and_bump_stall(&self) -> (bool, u8) {
+        (self.sound_on, self.bump_stall)
     }
 }
 
@@ -1154,6 +1357,278 @@ mod tests {
         };
         // Draws taken before the first tick (e.g. by another link's history) change nothing.
         assert_eq!(run(0), run(1000));
+    }
+
+    fn hex(s: &str) -> Vec<u8> {
+        s.split_whitespace()
+            .map(|b| u8::from_str_radix(b, 16).unwrap())
+            .collect()
+    }
+
+    /// Feeds wire bytes to the emulator; returns the wire bytes of its replies.
+    fn feed(e: &mut RobotEmulator, wire: &[u8]) -> Vec<u8> {
+        let mut d = FrameDecoder::new();
+        d.push(wire);
+        let mut out = Vec::new();
+        while let Some(f) = d.next_frame() {
+            for r in e.handle_frame(&f.unwrap()) {
+                out.extend(r.encode().unwrap());
+            }
+        }
+        out
+    }
+
+    /// The field order of ARIA's `ArRobotConfigPacketReader::packetHandler` (docs §5.3):
+    /// 's' a NUL-terminated string, 1/2/4 an integer of that many bytes.
+    const ARIA_CONFIG_FIELDS: [(&str, u8); 68] = [
+        ("Type", b's'),
+        ("SubType", b's'),
+        ("SerialNumber", b's'),
+        ("4MotorsFlag", 1),
+        ("RotVelTop", 2),
+        ("TransVelTop", 2),
+        ("RotAccelTop", 2),
+        ("TransAccelTop", 2),
+        ("PwmMax", 2),
+        ("Name", b's'),
+        ("SipCycleTime", 1),
+        ("HostBaud", 1),
+        ("Aux1Baud", 1),
+        ("HasGripper", 2),
+        ("FrontSonar", 2),
+        ("RearSonar", 1),
+        ("LowBattery", 2),
+        ("RevCount", 2),
+        ("Watchdog", 2),
+        ("NormalMPacs", 1),
+        ("StallVal", 2),
+        ("StallCount", 2),
+        ("JoyVel", 2),
+        ("JoyRotVel", 2),
+        ("RotVelMax", 2),
+        ("TransVelMax", 2),
+        ("RotAccel", 2),
+        ("RotDecel", 2),
+        ("RotKP", 2),
+        ("RotKV", 2),
+        ("RotKI", 2),
+        ("TransAccel", 2),
+        ("TransDecel", 2),
+        ("TransKP", 2),
+        ("TransKV", 2),
+        ("TransKI", 2),
+        ("FrontBumps", 1),
+        ("RearBumps", 1),
+        ("HasCharger", 1),
+        ("SonarCycle", 1),
+        ("ResetBaud", 1),
+        ("GyroType", 1),
+        ("DriftFactor", 2),
+        ("Aux2Baud", 1),
+        ("Aux3Baud", 1),
+        ("TicksMM", 2),
+        ("ShutdownVoltage", 2),
+        ("FirmwareVersion", b's'),
+        ("GyroCW", 2),
+        ("GyroCCW", 2),
+        ("KinematicsDelay", 1),
+        ("LatVelTop", 2),
+        ("LatAccelTop", 2),
+        ("LatVelMax", 2),
+        ("LatAccel", 2),
+        ("LatDecel", 2),
+        ("PowerbotChargeThreshold", 2),
+        ("PDBPort", 1),
+        ("GyroRateLimit", 2),
+        ("HighTemperatureShutdown", 1),
+        ("PowerBits", 2),
+        ("BatteryType", 1),
+        ("StateOfChargeLow", 2),
+        ("StateOfChargeShutdown", 2),
+        ("FirmwareBootloaderVersion", b's'),
+        ("ConfigFlags", 4),
+        ("GyroFWVersion", 2),
+        ("end", 0),
+    ];
+
+    /// Reads a CONFIG payload field by field as ARIA does; integers as unsigned.
+    fn aria_fields(payload: &[u8]) -> std::collections::BTreeMap<&'static str, String> {
+        let mut at = 0;
+        let mut out = std::collections::BTreeMap::new();
+        for (name, kind) in ARIA_CONFIG_FIELDS {
+            let value = match kind {
+                0 => continue,
+                b's' => {
+                    let end = at + payload[at..].iter().position(|b| *b == 0).unwrap();
+                    let v = String::from_utf8(payload[at..end].to_vec()).unwrap();
+                    at = end + 1;
+                    v
+                }
+                n => {
+                    let bytes = &payload[at..at + usize::from(n)];
+                    at += usize::from(n);
+                    bytes
+                        .iter()
+                        .rev()
+                        .fold(0u64, |acc, b| acc << 8 | u64::from(*b))
+                        .to_string()
+                }
+            };
+            out.insert(name, value);
+        }
+        assert_eq!(at, payload.len(), "every byte is a field ARIA reads");
+        out
+    }
+
+    #[test]
+    fn config_packet_carries_every_field_aria_reads() {
+        let mut e = opened(EmulatorConfig::default());
+        // CONFIG as ARIA sends it (comInt(CONFIG, 1)), docs §8.
+        let wire = feed(&mut e, &hex("FA FB 06 12 3B 01 00 13 3B"));
+        assert_eq!(&wire[..4], [0xFA, 0xFB, wire[2], 0x20]);
+        assert_eq!(usize::from(wire[2]) + 3, wire.len());
+        let payload = &wire[4..wire.len() - 2];
+        // Through WATCHDOG the packet is 60 bytes; ARIA reads 157 with these strings.
+        assert_eq!(payload.len(), 157);
+        let f = aria_fields(payload);
+        for (name, value) in [
+            ("Type", "Pioneer"),
+            ("SubType", "p3dx-sh"),
+            ("Name", "rfloc-emulator"),
+            ("TransVelTop", "2200"),
+            ("RotVelTop", "500"),
+            ("TransVelMax", "2200"),
+            ("RotVelMax", "500"),
+            ("TransAccel", "300"),
+            ("TransDecel", "300"),
+            ("RotAccel", "100"),
+            ("RotDecel", "100"),
+            ("Watchdog", "2000"),
+            ("SipCycleTime", "100"),
+            ("FrontSonar", "1"),
+            ("RearSonar", "1"),
+            ("NormalMPacs", "1"),
+            ("ResetBaud", "2"),
+            ("TicksMM", "128"),
+            ("FirmwareVersion", "rfloc-emulator"),
+            ("GyroFWVersion", "0"),
+        ] {
+            assert_eq!(f[name], value, "{name}");
+        }
+        // The typed parser reads the same packet back whole.
+        let c = ConfigPacket::parse(payload).unwrap();
+        let more = c.more.clone().unwrap();
+        assert_eq!((more.trans_vel_max, more.rot_vel_max), (2200, 500));
+        assert!(c.rest.is_empty());
+        assert_eq!(c.to_frame().encode().unwrap(), wire);
+    }
+
+    #[test]
+    fn config_reports_settings_changed_by_commands() {
+        let mut e = opened(EmulatorConfig::default());
+        // SETV 750, SETRV 100, HOSTBAUD 2, SETA 300, SETRA 100.
+        let out = feed(
+            &mut e,
+            &hex("FA FB 06 06 3B EE 02 F4 3D  FA FB 06 0A 3B 64 00 6E 3B  FA FB 06 32 3B 02 00 34 3B"),
+        );
+        assert!(out.is_empty());
+        let wire = feed(&mut e, &hex("FA FB 06 12 3B 01 00 13 3B"));
+        let f = aria_fields(&wire[4..wire.len() - 2]);
+        assert_eq!(
+            (
+                f["TransVelMax"].as_str(),
+                f["RotVelMax"].as_str(),
+                f["HostBaud"].as_str()
+            ),
+            ("750", "100", "2")
+        );
+    }
+
+    #[test]
+    fn sonar_is_on_after_open_and_off_after_sonar_0() {
+        let mut e = opened(EmulatorConfig::default());
+        let sip = e.motor_sip();
+        assert_eq!(sip.sonar.len(), 4, "sonar starts with the servers");
+        assert_eq!(sip.flags & 0b1_1110, 0b1_1110);
+        feed(&mut e, &hex("FA FB 06 1C 3B 00 00 1C 3B"));
+        assert!(e.motor_sip().sonar.is_empty());
+    }
+
+    #[test]
+    fn battery_info_packet_known_answer() {
+        let mut e = opened(EmulatorConfig::default());
+        // BATTERYINFO 1 → one 0xFA packet: 1 battery, 5 bytes, SOC 83 % at 12.5 V.
+        let out = feed(&mut e, &hex("FA FB 06 3E 3B 01 00 3F 3B"));
+        assert_eq!(out, hex("FA FB 0A FA 01 05 00 00 00 53 53 52 54"));
+        // BATTEST 110 (11.0 V) reaches the SIP and the battery packet.
+        feed(&mut e, &hex("FA FB 06 FA 3B 6E 00 68 3B"));
+        assert_eq!(e.motor_sip().battery_dv, 110);
+        let out = feed(&mut e, &hex("FA FB 06 3E 3B 01 00 3F 3B"));
+        assert_eq!(&out[4..11], [0x01, 0x05, 0, 0, 0, 0, 0]);
+    }
+
+    #[test]
+    fn aria_connection_and_drive_commands_are_all_understood() {
+        let mut e = RobotEmulator::new(EmulatorConfig::default());
+        // SYNC0, SYNC1, SYNC2, OPEN 1, then what ARIA sends while connecting and driving.
+        let handshake = feed(
+            &mut e,
+            &hex("FA FB 03 00 00 00  FA FB 03 01 00 01  FA FB 03 02 00 02"),
+        );
+        assert_eq!(&handshake[..12], hex("FA FB 03 00 00 00 FA FB 03 01 00 01"));
+        feed(&mut e, &hex("FA FB 06 01 3B 01 00 02 3B"));
+        assert!(e.st.open);
+        let sequence = [
+            "FA FB 03 00 00 00",          // PULSE
+            "FA FB 06 12 3B 01 00 13 3B", // CONFIG 1
+            "FA FB 06 32 3B 02 00 34 3B", // HOSTBAUD 2
+            "FA FB 06 3E 3B 01 00 3F 3B", // BATTERYINFO 1
+            "FA FB 06 1C 3B 01 00 1D 3B", // SONAR 1
+            "FA FB 06 5C 3B 00 00 5C 3B", // SOUNDTOG 0
+            "FA FB 06 2C 3B 03 00 2F 3B", // BUMPSTALL 3
+            "FA FB 06 11 3B 00 00 11 3B", // JOYINFO 0
+            "FA FB 06 13 3B 01 00 14 3B", // ENCODER 1
+            "FA FB 06 06 3B EE 02 F4 3D", // SETV 750
+            "FA FB 06 0A 3B 64 00 6E 3B", // SETRV 100
+            "FA FB 06 05 3B 2C 01 31 3C", // SETA 300
+            "FA FB 06 17 3B 64 00 7B 3B", // SETRA 100
+            "FA FB 06 04 3B 01 00 05 3B", // ENABLE 1
+            "FA FB 06 0B 3B 2C 01 37 3C", // VEL 300
+            "FA FB 06 15 3B 00 00 15 3B", // RVEL 0
+        ];
+        for c in sequence {
+            feed(&mut e, &hex(c));
+        }
+        assert_eq!(e.st.ignored_commands, 0);
+        assert_eq!(e.sound_and_bump_stall(), (false, 3));
+        for _ in 0..15 {
+            e.step_period();
+        }
+        assert!(
+            (e.st.v - 0.3).abs() < 1e-9,
+            "VEL 300 drives at 0.3 m/s: {:?}",
+            e.st
+        );
+        // ROTATE 30 turns like RVEL; DCHEAD −45 turns to 45° below the heading setpoint.
+        feed(&mut e, &hex("FA FB 06 09 3B 1E 00 27 3B"));
+        for _ in 0..10 {
+            e.step_period();
+        }
+        assert!((e.st.w - 30f64.to_radians()).abs() < 1e-9);
+        feed(&mut e, &hex("FA FB 03 1D 00 1D FA FB 06 0C 3B 5A 00 66 3B"));
+        feed(&mut e, &hex("FA FB 06 16 1B 2D 00 43 1B"));
+        for _ in 0..15 {
+            e.step_period();
+        }
+        assert!((e.st.odometry.theta - 45f64.to_radians()).abs() < 0.01);
+        // STOP, E_STOP, CLOSE 1: the robot stops and the connection closes, sonar off.
+        feed(
+            &mut e,
+            &hex("FA FB 03 1D 00 1D  FA FB 03 37 00 37  FA FB 06 02 3B 01 00 03 3B"),
+        );
+        assert!(!e.st.open);
+        assert_eq!(e.st.ignored_commands, 0);
+        assert_eq!((e.st.v, e.st.w), (0.0, 0.0));
     }
 
     #[test]

@@ -37,7 +37,7 @@ pub use frame::{checksum, EncodeError, Frame, FrameDecoder, FrameError};
 pub use mock_base::{MockBase, MockBaseCall};
 pub use odometry::{ConversionFactors, OdometrySample, OdometryTracker};
 pub use sip::{
-    ConfigPacket, MotorSip, RobotIdentity, ServerPacket, SipError, SipTail, SonarReading,
-    StallBumpers,
+    ConfigMore, ConfigPacket, MotorSip, RobotIdentity, ServerPacket, SipError, SipTail,
+    SonarReading, StallBumpers,
 };
 pub use sonar::{p3dx_discs, SonarDisc, SonarRing, NO_ECHO_M};

@@ -165,8 +165,10 @@ impl OdometryTracker {
         let y = i32::from(sip.y_raw & 0x7FFF);
         match self.last_raw {
             None => {
-                self.enc_x = i64::from(x);
-                self.enc_y = i64::from(y);
+                // The counters start at the robot's origin: a robot that backed off before the
+                // first SIP reports e.g. 0x7FF5, which is −11 units, not +32757.
+                self.enc_x = i64::from(signed15(x));
+                self.enc_y = i64::from(signed15(y));
             }
             Some((lx, ly)) => {
                 self.enc_x += i64::from(unwrap_delta(x - lx));
@@ -201,6 +203,18 @@ impl OdometryTracker {
             battery_v,
             motors_enabled: sip.motors_enabled(),
         }
+    }
+}
+
+/// A 15-bit XPOS/YPOS counter read as a signed (two's complement) 15-bit position: 0x4000 and
+/// above are negative (0x7FFF = −1).
+#[must_use]
+pub fn signed15(raw: i32) -> i32 {
+    let v = raw & 0x7FFF;
+    if v >= 0x4000 {
+        v - WRAP_PERIOD
+    } else {
+        v
     }
 }
 
@@ -290,6 +304,26 @@ mod tests {
         let moved = t.update(&sip(100, 0, 0)).pose;
         assert!((moved.y - before.y - 0.1).abs() < 1e-3);
         assert!((moved.x - before.x).abs() < 1e-3);
+    }
+
+    #[test]
+    fn first_position_is_a_signed_15_bit_value() {
+        assert_eq!(signed15(0x7FF5), -11);
+        assert_eq!(signed15(0x3FFF), 0x3FFF);
+        assert_eq!(signed15(0x4000), -0x4000);
+        assert_eq!(signed15(0x8000 | 5), 5);
+        // XPOS bytes F5 7F (the robot backed off 11 mm before the first SIP), YPOS 0C 00.
+        let mut t = OdometryTracker::new(ConversionFactors::P3DX_SH);
+        let first = t.update(&sip(
+            u16::from_le_bytes([0xF5, 0x7F]),
+            u16::from_le_bytes([0x0C, 0x00]),
+            0,
+        ));
+        assert!((first.pose.x + 0.011).abs() < 1e-12, "x = {}", first.pose.x);
+        assert!((first.pose.y - 0.012).abs() < 1e-12);
+        // Forward through zero and on: increments, not absolute values.
+        let next = t.update(&sip(0x0005, 0x000C, 0));
+        assert!((next.pose.x - 0.005).abs() < 1e-12);
     }
 
     #[test]

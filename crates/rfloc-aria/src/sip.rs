@@ -69,6 +69,18 @@ impl<'a> FieldReader<'a> {
     fn i16(&mut self, field: &'static str) -> Result<i16, SipError> {
         self.u16(field).map(|v| i16::from_le_bytes(v.to_le_bytes()))
     }
+    fn i8(&mut self, field: &'static str) -> Result<i8, SipError> {
+        self.u8(field).map(|v| i8::from_le_bytes([v]))
+    }
+    fn u32(&mut self, field: &'static str) -> Result<u32, SipError> {
+        match self.rest {
+            [a, b, c, d, rest @ ..] => {
+                self.rest = rest;
+                Ok(u32::from_le_bytes([*a, *b, *c, *d]))
+            }
+            _ => Err(self.err(field)),
+        }
+    }
     /// A NUL-terminated string; a missing final NUL ends the string at the payload's end.
     fn cstr(&mut self, field: &'static str) -> Result<String, SipError> {
         if self.rest.is_empty() {
@@ -356,8 +368,9 @@ impl RobotIdentity {
     }
 }
 
-/// The leading fields of the CONFIG packet (type `0x20`, docs §5.3); the fields after WATCHDOG
-/// are kept as raw bytes.
+/// The CONFIG packet (type `0x20`, docs §5.3): the leading fields through WATCHDOG, which every
+/// controller sends, then [`ConfigMore`] (the fields ARIA's `ArRobotConfigPacketReader` reads
+/// after WATCHDOG) when the packet carries all of them, then any bytes after those.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct ConfigPacket {
     /// Robot class.
@@ -366,7 +379,7 @@ pub struct ConfigPacket {
     pub subclass: String,
     /// Serial number.
     pub serial: String,
-    /// Unused byte (old P2OS AT flag).
+    /// Unused byte (old P2OS AT flag; ARIA's 4MotorsFlag).
     pub four_motors: u8,
     /// Top rotational velocity, deg/s.
     pub rot_vel_top: u16,
@@ -398,18 +411,240 @@ pub struct ConfigPacket {
     pub rev_count: u16,
     /// Watchdog time, ms.
     pub watchdog_ms: u16,
-    /// Fields after WATCHDOG, not interpreted.
+    /// The fields after WATCHDOG, when the packet carries all of them.
+    pub more: Option<ConfigMore>,
+    /// Bytes after the last interpreted field (all of them after WATCHDOG when `more` is
+    /// `None`).
     pub rest: Vec<u8>,
 }
 
+/// The CONFIG fields after WATCHDOG, in the order ARIA's `ArRobotConfigPacketReader` reads them
+/// (docs §5.3). A controller that stops earlier leaves ARIA reading zeros: a TransVelMax of 0
+/// makes ARIA ignore the value and send every velocity as 0.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct ConfigMore {
+    /// Standard motor packets (P2MPACS), 1 = on.
+    pub normal_motor_packets: u8,
+    /// PWM at which a wheel counts as stalled.
+    pub stall_val: u16,
+    /// Stall recovery time, ms.
+    pub stall_count: u16,
+    /// Joystick translational velocity, mm/s.
+    pub joy_vel: u16,
+    /// Joystick rotational velocity, deg/s.
+    pub joy_rot_vel: u16,
+    /// Current maximum rotational velocity (SETRV), deg/s.
+    pub rot_vel_max: u16,
+    /// Current maximum translational velocity (SETV), mm/s.
+    pub trans_vel_max: u16,
+    /// Rotational acceleration, deg/s².
+    pub rot_accel: u16,
+    /// Rotational deceleration, deg/s².
+    pub rot_decel: u16,
+    /// Rotational PID proportional term.
+    pub rot_kp: u16,
+    /// Rotational PID derivative term.
+    pub rot_kv: u16,
+    /// Rotational PID integral term.
+    pub rot_ki: u16,
+    /// Translational acceleration, mm/s².
+    pub trans_accel: u16,
+    /// Translational deceleration, mm/s².
+    pub trans_decel: u16,
+    /// Translational PID proportional term.
+    pub trans_kp: u16,
+    /// Translational PID derivative term.
+    pub trans_kv: u16,
+    /// Translational PID integral term.
+    pub trans_ki: u16,
+    /// Front bumper segments.
+    pub front_bumps: u8,
+    /// Rear bumper segments.
+    pub rear_bumps: u8,
+    /// Charger type (0 = none).
+    pub has_charger: u8,
+    /// Sonar cycle, ms.
+    pub sonar_cycle_ms: u8,
+    /// AUTOBAUD: 2 = the controller can switch baud on HOSTBAUD (ARIA's ResetBaud).
+    pub autobaud: u8,
+    /// Gyro type (0 = none, 1 = SIP gyro).
+    pub gyro_type: u8,
+    /// Drift factor.
+    pub drift_factor: i16,
+    /// AUX2 baud code.
+    pub aux2_baud: u8,
+    /// AUX3 baud code.
+    pub aux3_baud: u8,
+    /// Encoder ticks per mm.
+    pub ticks_mm: u16,
+    /// Shutdown voltage, decivolts.
+    pub shutdown_voltage_dv: u16,
+    /// Firmware version text.
+    pub firmware_version: String,
+    /// Gyro clockwise calibration.
+    pub gyro_cw: u16,
+    /// Gyro counter-clockwise calibration.
+    pub gyro_ccw: u16,
+    /// Kinematics delay, ms.
+    pub kinematics_delay: u8,
+    /// Top lateral velocity, mm/s (0 without lateral motion).
+    pub lat_vel_top: u16,
+    /// Top lateral acceleration, mm/s².
+    pub lat_accel_top: u16,
+    /// Current maximum lateral velocity, mm/s.
+    pub lat_vel_max: u16,
+    /// Lateral acceleration, mm/s².
+    pub lat_accel: u16,
+    /// Lateral deceleration, mm/s².
+    pub lat_decel: u16,
+    /// PowerBot charge threshold.
+    pub powerbot_charge_threshold: u16,
+    /// Power distribution board port.
+    pub pdb_port: u8,
+    /// Gyro rate limit, deg/s.
+    pub gyro_rate_limit: u16,
+    /// High temperature shutdown, °C.
+    pub high_temperature_shutdown: i8,
+    /// Power bits.
+    pub power_bits: u16,
+    /// Battery type (0 = lead acid).
+    pub battery_type: u8,
+    /// Low state of charge, percent.
+    pub state_of_charge_low: u16,
+    /// Shutdown state of charge, percent.
+    pub state_of_charge_shutdown: u16,
+    /// Boot loader version text.
+    pub bootloader_version: String,
+    /// Configuration flags.
+    pub config_flags: u32,
+    /// Gyro firmware version.
+    pub gyro_fw_version: i16,
+}
+
+impl ConfigMore {
+    fn read(r: &mut FieldReader<'_>) -> Result<Self, SipError> {
+        Ok(Self {
+            normal_motor_packets: r.u8("NORMALMPACS")?,
+            stall_val: r.u16("STALLVAL")?,
+            stall_count: r.u16("STALLCOUNT")?,
+            joy_vel: r.u16("JOYVEL")?,
+            joy_rot_vel: r.u16("JOYRVEL")?,
+            rot_vel_max: r.u16("ROTVELMAX")?,
+            trans_vel_max: r.u16("TRANSVELMAX")?,
+            rot_accel: r.u16("ROTACCEL")?,
+            rot_decel: r.u16("ROTDECEL")?,
+            rot_kp: r.u16("ROTKP")?,
+            rot_kv: r.u16("ROTKV")?,
+            rot_ki: r.u16("ROTKI")?,
+            trans_accel: r.u16("TRANSACCEL")?,
+            trans_decel: r.u16("TRANSDECEL")?,
+            trans_kp: r.u16("TRANSKP")?,
+            trans_kv: r.u16("TRANSKV")?,
+            trans_ki: r.u16("TRANSKI")?,
+            front_bumps: r.u8("FRONTBUMPS")?,
+            rear_bumps: r.u8("REARBUMPS")?,
+            has_charger: r.u8("CHARGER")?,
+            sonar_cycle_ms: r.u8("SONARCYCLE")?,
+            autobaud: r.u8("AUTOBAUD")?,
+            gyro_type: r.u8("HASGYRO")?,
+            drift_factor: r.i16("DRIFTFACTOR")?,
+            aux2_baud: r.u8("AUX2BAUD")?,
+            aux3_baud: r.u8("AUX3BAUD")?,
+            ticks_mm: r.u16("TICKSMM")?,
+            shutdown_voltage_dv: r.u16("SHUTDOWNVOLTS")?,
+            firmware_version: r.cstr("VERSION")?,
+            gyro_cw: r.u16("GYROCW")?,
+            gyro_ccw: r.u16("GYROCCW")?,
+            kinematics_delay: r.u8("KINEMATICSDELAY")?,
+            lat_vel_top: r.u16("LATVELTOP")?,
+            lat_accel_top: r.u16("LATACCTOP")?,
+            lat_vel_max: r.u16("LATVELMAX")?,
+            lat_accel: r.u16("LATACCEL")?,
+            lat_decel: r.u16("LATDECEL")?,
+            powerbot_charge_threshold: r.u16("CHARGETHRESHOLD")?,
+            pdb_port: r.u8("PDBPORT")?,
+            gyro_rate_limit: r.u16("GYRORATELIMIT")?,
+            high_temperature_shutdown: r.i8("HIGHTEMPSHUTDOWN")?,
+            power_bits: r.u16("POWERBITS")?,
+            battery_type: r.u8("BATTERYTYPE")?,
+            state_of_charge_low: r.u16("LOWSTATEOFCHARGE")?,
+            state_of_charge_shutdown: r.u16("SHUTDOWNSTATEOFCHARGE")?,
+            bootloader_version: r.cstr("BOOTLOADERVERSION")?,
+            config_flags: r.u32("CONFIGFLAGS")?,
+            gyro_fw_version: r.i16("GYROFWVERSION")?,
+        })
+    }
+
+    fn write(&self, p: &mut Vec<u8>) {
+        p.push(self.normal_motor_packets);
+        for v in [
+            self.stall_val,
+            self.stall_count,
+            self.joy_vel,
+            self.joy_rot_vel,
+            self.rot_vel_max,
+            self.trans_vel_max,
+            self.rot_accel,
+            self.rot_decel,
+            self.rot_kp,
+            self.rot_kv,
+            self.rot_ki,
+            self.trans_accel,
+            self.trans_decel,
+            self.trans_kp,
+            self.trans_kv,
+            self.trans_ki,
+        ] {
+            put_u16(p, v);
+        }
+        p.extend_from_slice(&[
+            self.front_bumps,
+            self.rear_bumps,
+            self.has_charger,
+            self.sonar_cycle_ms,
+            self.autobaud,
+            self.gyro_type,
+        ]);
+        put_i16(p, self.drift_factor);
+        p.extend_from_slice(&[self.aux2_baud, self.aux3_baud]);
+        put_u16(p, self.ticks_mm);
+        put_u16(p, self.shutdown_voltage_dv);
+        put_cstr(p, &self.firmware_version);
+        put_u16(p, self.gyro_cw);
+        put_u16(p, self.gyro_ccw);
+        p.push(self.kinematics_delay);
+        for v in [
+            self.lat_vel_top,
+            self.lat_accel_top,
+            self.lat_vel_max,
+            self.lat_accel,
+            self.lat_decel,
+            self.powerbot_charge_threshold,
+        ] {
+            put_u16(p, v);
+        }
+        p.push(self.pdb_port);
+        put_u16(p, self.gyro_rate_limit);
+        p.extend_from_slice(&self.high_temperature_shutdown.to_le_bytes());
+        put_u16(p, self.power_bits);
+        p.push(self.battery_type);
+        put_u16(p, self.state_of_charge_low);
+        put_u16(p, self.state_of_charge_shutdown);
+        put_cstr(p, &self.bootloader_version);
+        p.extend_from_slice(&self.config_flags.to_le_bytes());
+        put_i16(p, self.gyro_fw_version);
+    }
+}
+
 impl ConfigPacket {
-    /// Parses a CONFIG payload.
+    /// Parses a CONFIG payload. The fields after WATCHDOG become [`ConfigPacket::more`] when
+    /// all of them are there, and stay raw bytes in [`ConfigPacket::rest`] otherwise.
     ///
     /// # Errors
     /// [`SipError::Truncated`] when a field through WATCHDOG is missing.
     pub fn parse(payload: &[u8]) -> Result<Self, SipError> {
         let mut r = FieldReader::new(CONFIG_PACKET, payload);
-        Ok(Self {
+        let mut c = Self {
             class: r.cstr("TYPE")?,
             subclass: r.cstr("SUBTYPE")?,
             serial: r.cstr("SERIAL")?,
@@ -429,8 +664,18 @@ impl ConfigPacket {
             low_battery_dv: r.u16("LOWBATTERY")?,
             rev_count: r.u16("REVCOUNT")?,
             watchdog_ms: r.u16("WATCHDOG")?,
-            rest: r.remaining(),
-        })
+            more: None,
+            rest: Vec::new(),
+        };
+        let after_watchdog = r.rest;
+        match ConfigMore::read(&mut r) {
+            Ok(more) => {
+                c.more = Some(more);
+                c.rest = r.remaining();
+            }
+            Err(_) => c.rest = after_watchdog.to_vec(),
+        }
+        Ok(c)
     }
 
     /// The CONFIG frame.
@@ -458,6 +703,9 @@ impl ConfigPacket {
         put_u16(&mut p, self.low_battery_dv);
         put_u16(&mut p, self.rev_count);
         put_u16(&mut p, self.watchdog_ms);
+        if let Some(more) = &self.more {
+            more.write(&mut p);
+        }
         p.extend_from_slice(&self.rest);
         Frame::new(CONFIG_PACKET, p)
     }
@@ -650,6 +898,24 @@ mod tests {
             sip_cycle_ms: 100,
             watchdog_ms: 2000,
             rest: vec![1, 2, 3],
+            ..ConfigPacket::default()
+        };
+        let f = c.to_frame();
+        assert_eq!(
+            ServerPacket::from_frame(f).unwrap(),
+            ServerPacket::Config(c)
+        );
+        let c = ConfigPacket {
+            class: "Pioneer".into(),
+            more: Some(ConfigMore {
+                trans_vel_max: 750,
+                firmware_version: "1.0".into(),
+                bootloader_version: "boot".into(),
+                config_flags: 0x0102_0304,
+                high_temperature_shutdown: -5,
+                ..ConfigMore::default()
+            }),
+            rest: vec![9],
             ..ConfigPacket::default()
         };
         let f = c.to_frame();

@@ -30,6 +30,53 @@ impl Default for UrgConfig {
     }
 }
 
+/// What the sensor told about itself in the handshake ([`UrgClient::connect`]).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SensorInfo {
+    /// The `VV` fields (`VEND`, `PROD`, `FIRM`, `PROT`, `SERI`), empty when `VV` failed.
+    pub version: Vec<(String, String)>,
+    /// The `PP` fields, empty when `PP` failed.
+    pub parameters: Vec<(String, String)>,
+    /// The geometry read from `PP`; `None` when `PP` failed or lacked a field (the client
+    /// then keeps its configured geometry).
+    pub geometry: Option<UrgGeometry>,
+}
+
+impl SensorInfo {
+    /// A `VV` or `PP` field.
+    #[must_use]
+    pub fn field(&self, key: &str) -> Option<&str> {
+        self.version
+            .iter()
+            .chain(&self.parameters)
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v.as_str())
+    }
+}
+
+/// The geometry in `PP` fields: `ARES`, `AFRT`, `AMIN`, `AMAX`, `DMIN`, `DMAX` all present,
+/// numeric and consistent (`AMIN ≤ AMAX < ARES`, `DMIN < DMAX`).
+#[must_use]
+pub fn geometry_from_parameters(fields: &[(String, String)]) -> Option<UrgGeometry> {
+    let get = |k: &str| -> Option<u32> {
+        fields
+            .iter()
+            .find(|(key, _)| key == k)
+            .and_then(|(_, v)| v.trim().parse().ok())
+    };
+    let step = |k: &str| get(k).and_then(|v| u16::try_from(v).ok());
+    let g = UrgGeometry {
+        steps_per_rev: step("ARES")?,
+        front_step: step("AFRT")?,
+        first_step: step("AMIN")?,
+        last_step: step("AMAX")?,
+        min_mm: get("DMIN")?,
+        max_mm: get("DMAX")?,
+    };
+    (g.first_step <= g.last_step && g.last_step < g.steps_per_rev && g.min_mm < g.max_mm)
+        .then_some(g)
+}
+
 /// A URG sensor behind a stream.
 pub struct UrgClient<T> {
     io: T,
@@ -38,6 +85,7 @@ pub struct UrgClient<T> {
 }
 
 impl<T: AsyncRead + AsyncWrite + Unpin> UrgClient<T> {
+    /// A client that uses the configured geometry as it is (no handshake).
     #[must_use]
     pub fn new(io: T, config: UrgConfig) -> Self {
         Self {
@@ -45,6 +93,98 @@ impl<T: AsyncRead + AsyncWrite + Unpin> UrgClient<T> {
             decoder: ReplyDecoder::new(),
             config,
         }
+    }
+
+    /// A client that first asks the sensor what it is: `SCIP2.0` (status `00`, or `0E` from a
+    /// sensor already speaking SCIP 2.0), `VV` and `PP`. The geometry `PP` reports replaces
+    /// the configured one; when `PP` fails or is incomplete the configured geometry stays
+    /// (a warning is logged). Only link failures are errors.
+    ///
+    /// # Errors
+    /// [`ScipError::Io`] and [`ScipError::Closed`]; time-outs and refusals are not.
+    pub async fn connect(io: T, config: UrgConfig) -> Result<(Self, SensorInfo), ScipError> {
+        let mut client = Self::new(io, config);
+        let info = client.identify().await?;
+        Ok((client, info))
+    }
+
+    /// The handshake of [`UrgClient::connect`] on an existing client.
+    ///
+    /// # Errors
+    /// As [`UrgClient::connect`].
+    pub async fn identify(&mut self) -> Result<SensorInfo, ScipError> {
+        let mut info = SensorInfo::default();
+        match self.exchange(Command::Scip2).await {
+            Ok(r) if matches!(&r.status, b"00" | b"0E") => {}
+            Ok(r) => {
+                tracing::warn!(status = ?String::from_utf8_lossy(&r.status), "SCIP2.0 refused")
+            }
+            Err(e) => Self::fatal_or_warn(e, "SCIP2.0")?,
+        }
+        match self.info(Command::Version).await {
+            Ok(v) => info.version = v,
+            Err(e) => Self::fatal_or_warn(e, "VV")?,
+        }
+        match self.info(Command::Parameters).await {
+            Ok(p) => {
+                info.geometry = geometry_from_parameters(&p);
+                info.parameters = p;
+            }
+            Err(e) => Self::fatal_or_warn(e, "PP")?,
+        }
+        match info.geometry {
+            Some(g) => self.config.geometry = g,
+            None => tracing::warn!(
+                geometry = ?self.config.geometry,
+                "no usable PP geometry; keeping the configured one"
+            ),
+        }
+        Ok(info)
+    }
+
+    /// Link failures end the handshake; anything else is logged and skipped.
+    fn fatal_or_warn(e: ScipError, what: &str) -> Result<(), ScipError> {
+        match e {
+            ScipError::Io(_) | ScipError::Closed => Err(e),
+            other => {
+                tracing::warn!(command = what, error = %other, "URG handshake step failed");
+                Ok(())
+            }
+        }
+    }
+
+    /// The `KEY:value` fields of an information command's reply.
+    async fn info(&mut self, command: Command) -> Result<Vec<(String, String)>, ScipError> {
+        let r = self.exchange(command).await?;
+        if !r.ok() {
+            return Err(ScipError::Status {
+                echo: r.echo,
+                status: r.status,
+            });
+        }
+        r.info()
+    }
+
+    /// Reads `PP` and, when it carries a usable geometry, uses it from now on; otherwise the
+    /// geometry in use stays. Returns the geometry in use afterwards.
+    ///
+    /// # Errors
+    /// Link failures only.
+    pub async fn read_parameters(&mut self) -> Result<UrgGeometry, ScipError> {
+        match self.info(Command::Parameters).await {
+            Ok(p) => match geometry_from_parameters(&p) {
+                Some(g) => self.config.geometry = g,
+                None => tracing::warn!("PP without a usable geometry; keeping the configured one"),
+            },
+            Err(e) => Self::fatal_or_warn(e, "PP")?,
+        }
+        Ok(self.config.geometry)
+    }
+
+    /// The geometry the client scans with: the one `PP` reported, or the configured one.
+    #[must_use]
+    pub fn geometry(&self) -> UrgGeometry {
+        self.config.geometry
     }
 
     /// Switches the laser on (`BM`); a sensor whose laser is already on answers status `02`,
@@ -208,6 +348,45 @@ mod tests {
             Err(ScipError::Closed | ScipError::Timeout(_))
         ));
         assert_eq!(client.stats().bad_replies, 1);
+    }
+
+    #[tokio::test]
+    async fn handshake_reads_pp_byte_for_byte() {
+        let io = MockTransport::builder()
+            .expect_write(b"SCIP2.0\n")
+            .reply(b"SCIP2.0\n0Ee\n\n")
+            .expect_write(b"VV\n")
+            .reply(b"VV\n00P\nPROT:SCIP 2.0;N\n\n")
+            .expect_write(b"PP\n")
+            .reply(
+                b"PP\n00P\nDMIN:20;4\nDMAX:4000;X\nARES:1024;\\\nAMIN:44;7\nAMAX:725;o\nAFRT:384;6\nSCAN:600;e\n\n",
+            )
+            .build();
+        let (client, info) = UrgClient::connect(io, UrgConfig::default()).await.unwrap();
+        let g = UrgGeometry {
+            max_mm: 4000,
+            ..UrgGeometry::default()
+        };
+        assert_eq!(info.geometry, Some(g));
+        assert_eq!(client.geometry(), g);
+        assert_eq!(info.field("PROT"), Some("SCIP 2.0"));
+    }
+
+    #[tokio::test]
+    async fn a_refused_pp_keeps_the_configured_geometry() {
+        // A SCIP 1.1-only answer to everything: undefined command `0D`.
+        let io = MockTransport::builder()
+            .expect_write(b"SCIP2.0\n")
+            .reply(b"SCIP2.0\n00P\n\n")
+            .expect_write(b"VV\n")
+            .reply(b"VV\n0Dd\n\n")
+            .expect_write(b"PP\n")
+            .reply(b"PP\n0Dd\n\n")
+            .build();
+        let (client, info) = UrgClient::connect(io, UrgConfig::default()).await.unwrap();
+        assert_eq!(info.geometry, None);
+        assert!(info.version.is_empty() && info.parameters.is_empty());
+        assert_eq!(client.geometry(), UrgGeometry::default());
     }
 
     #[tokio::test]

@@ -10,6 +10,14 @@ pub enum Command {
     /// `GD`: the latest scan from `start` to `end` step, `cluster` adjacent steps merged into
     /// one value (the smallest), three characters per value.
     GetDistance { start: u16, end: u16, cluster: u8 },
+    /// `SCIP2.0`: switch a SCIP 1.1 sensor to SCIP 2.0 (status `0E` from one already there).
+    Scip2,
+    /// `VV`: vendor, product, firmware, protocol and serial number.
+    Version,
+    /// `PP`: model, range limits, step geometry and motor speed.
+    Parameters,
+    /// `II`: model, laser, motor and link state, time.
+    State,
 }
 
 impl Command {
@@ -39,6 +47,10 @@ impl Command {
                 cluster % 100
             )
             .into_bytes(),
+            Command::Scip2 => b"SCIP2.0".to_vec(),
+            Command::Version => b"VV".to_vec(),
+            Command::Parameters => b"PP".to_vec(),
+            Command::State => b"II".to_vec(),
         }
     }
 }
@@ -57,5 +69,9 @@ mod tests {
             cluster: 1,
         };
         assert_eq!(gd.to_bytes(), b"GD0044072501\n");
+        assert_eq!(Command::Scip2.to_bytes(), b"SCIP2.0\n");
+        assert_eq!(Command::Parameters.to_bytes(), b"PP\n");
+        assert_eq!(Command::Version.to_bytes(), b"VV\n");
+        assert_eq!(Command::State.to_bytes(), b"II\n");
     }
 }

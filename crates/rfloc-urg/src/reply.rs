@@ -21,18 +21,101 @@ pub struct Reply {
     pub timestamp_ms: Option<u32>,
     /// The data characters of all data lines, sums removed, in order.
     pub data: Vec<u8>,
+    /// The text lines of an information reply (`VV`, `PP`, `II`, `TM1`, `%ST`), as sent,
+    /// sums included (see [`Reply::info`]); empty for other replies.
+    pub lines: Vec<Vec<u8>>,
 }
 
 impl Reply {
     /// A successful distance reply to `echo` carrying `ranges_mm` (three characters each).
     #[must_use]
     pub fn distance(echo: &[u8], timestamp_ms: u32, ranges_mm: &[u32]) -> Self {
+        Self::distance_encoded(echo, *b"00", timestamp_ms, ranges_mm, 3)
+    }
+
+    /// A distance reply with `status` (`00` for `GD`/`GS`, `99` for a scan of `MD`/`MS`) and
+    /// `width` characters per value (3 for `GD`/`MD`, 2 for `GS`/`MS`).
+    #[must_use]
+    pub fn distance_encoded(
+        echo: &[u8],
+        status: [u8; 2],
+        timestamp_ms: u32,
+        ranges_mm: &[u32],
+        width: usize,
+    ) -> Self {
         Self {
             echo: echo.to_vec(),
-            status: *b"00",
+            status,
             timestamp_ms: Some(timestamp_ms),
-            data: ranges_mm.iter().flat_map(|r| encode(*r, 3)).collect(),
+            data: ranges_mm.iter().flat_map(|r| encode(*r, width)).collect(),
+            lines: Vec::new(),
         }
+    }
+
+    /// A status-only reply (no time stamp, no data).
+    #[must_use]
+    pub fn status_only(echo: &[u8], status: [u8; 2]) -> Self {
+        Self {
+            echo: echo.to_vec(),
+            status,
+            timestamp_ms: None,
+            data: Vec::new(),
+            lines: Vec::new(),
+        }
+    }
+
+    /// An information reply: status `00`, then one line per `(key, value)`, written
+    /// `KEY:value;sum` with the sum over `KEY:value` (REF §8.11-8.13; the `PP` example
+    /// `DMIN:20;4`).
+    #[must_use]
+    pub fn information(echo: &[u8], fields: &[(&str, String)]) -> Self {
+        let lines = fields
+            .iter()
+            .map(|(k, v)| {
+                let mut l = format!("{k}:{v}").into_bytes();
+                let sum = check_sum(&l);
+                l.push(b';');
+                l.push(sum);
+                l
+            })
+            .collect();
+        Self {
+            lines,
+            ..Self::status_only(echo, *b"00")
+        }
+    }
+
+    /// The `KEY:value` pairs of an information reply, in order.
+    ///
+    /// # Errors
+    /// [`ScipError::CheckSum`] for a line whose sum does not match, [`ScipError::Malformed`]
+    /// for a line without `:` and `;`.
+    pub fn info(&self) -> Result<Vec<(String, String)>, ScipError> {
+        self.lines
+            .iter()
+            .filter(|l| !l.is_empty())
+            .map(|line| {
+                let (sum, rest) = line.split_last().ok_or_else(|| ScipError::Malformed {
+                    why: "empty information line",
+                    bytes: line.clone(),
+                })?;
+                let text = rest
+                    .strip_suffix(b";")
+                    .ok_or_else(|| ScipError::Malformed {
+                        why: "information line without ';'",
+                        bytes: line.clone(),
+                    })?;
+                if check_sum(text) != *sum {
+                    return Err(ScipError::CheckSum { line: line.clone() });
+                }
+                let text = String::from_utf8_lossy(text);
+                let (k, v) = text.split_once(':').ok_or_else(|| ScipError::Malformed {
+                    why: "information line without ':'",
+                    bytes: line.clone(),
+                })?;
+                Ok((k.to_string(), v.to_string()))
+            })
+            .collect()
     }
 
     /// The reply as the sensor sends it: the echo, the status with its sum, for distance data
@@ -45,6 +128,10 @@ impl Reply {
         out.extend_from_slice(&self.status);
         out.push(check_sum(&self.status));
         out.push(b'\n');
+        for line in &self.lines {
+            out.extend_from_slice(line);
+            out.push(b'\n');
+        }
         if let Some(stamp) = self.timestamp_ms {
             let t = encode(stamp, 4);
             out.extend_from_slice(&t);
@@ -89,18 +176,14 @@ impl Reply {
                 })
             }
         };
-        let distance = echo.starts_with(b"GD")
-            || echo.starts_with(b"GS")
-            || echo.starts_with(b"MD")
-            || echo.starts_with(b"MS");
-        let mut reply = Reply {
-            echo: echo.to_vec(),
-            status,
-            timestamp_ms: None,
-            data: Vec::new(),
-        };
-        if !(distance && reply.ok()) {
-            // Other replies (BM, QT, VV, …) carry text lines rfloc does not read.
+        // Distance data follows `00` for a single scan (GD, GS) and `99` for each scan of a
+        // continuous request (MD, MS, whose first reply is a bare `00`).
+        let single = echo.starts_with(b"GD") || echo.starts_with(b"GS");
+        let continuous = echo.starts_with(b"MD") || echo.starts_with(b"MS");
+        let mut reply = Reply::status_only(echo, status);
+        if !((single && &status == b"00") || (continuous && &status == b"99")) {
+            // Other replies (BM, QT, VV, PP, …): their text lines, checked by `info`.
+            reply.lines = rest.iter().map(|l| l.to_vec()).collect();
             return Ok(reply);
         }
         let (stamp, data_lines) = rest.split_first().ok_or_else(|| ScipError::Malformed {
@@ -267,12 +350,7 @@ mod tests {
         // 0x10F, low 6 bits 0x0F + 0x30 = `?`; `1Dh0CB00D` to 0x236, 0x36 + 0x30 = `f`.
         let bytes = gd_reply(b"GD0044004601", 16_000_000, &[5432, 1234, 20]);
         assert_eq!(bytes, b"GD0044004601\n00P\nm2@0?\n1Dh0CB00Df\n\n".to_vec());
-        let status = Reply {
-            echo: b"BM".to_vec(),
-            status: *b"02",
-            timestamp_ms: None,
-            data: Vec::new(),
-        };
+        let status = Reply::status_only(b"BM", *b"02");
         assert_eq!(status.to_bytes(), b"BM\n02R\n\n".to_vec());
     }
 
@@ -323,6 +401,41 @@ mod tests {
         d.push(b"QT\n00P\n\n");
         assert_eq!(d.next_reply().unwrap().unwrap().echo, b"QT");
         assert!(d.next_reply().is_none());
+    }
+
+    #[test]
+    fn the_specification_pp_example_decodes() {
+        // REF §8.12's PP example (sums as printed there: `DMIN:20` → `4`, `DMAX:5600` → `_`,
+        // `AMIN:44` → `7`, `AMAX:725` → `o`, `AFRT:384` → `6`, `SCAN:600` → `e`; the copy read
+        // shows `/` for `ARES:1024`'s `\` and a MODL text whose sum cannot be checked).
+        let bytes = b"PP\n00P\nMODL:URG-04LX(Hokuyo Automatic Co.,Ltd.);N\nDMIN:20;4\nDMAX:5600;_\nARES:1024;\\\nAMIN:44;7\nAMAX:725;o\nAFRT:384;6\nSCAN:600;e\n\n";
+        let mut d = ReplyDecoder::new();
+        d.push(bytes);
+        let r = d.next_reply().unwrap().unwrap();
+        let info = r.info().unwrap();
+        assert_eq!(info.len(), 8);
+        assert_eq!(info[1], ("DMIN".to_string(), "20".to_string()));
+        assert_eq!(info[7], ("SCAN".to_string(), "600".to_string()));
+        // Written back identically.
+        let fields: Vec<(&str, String)> =
+            info.iter().map(|(k, v)| (k.as_str(), v.clone())).collect();
+        assert_eq!(
+            Reply::information(b"PP", &fields).to_bytes(),
+            bytes.to_vec()
+        );
+    }
+
+    #[test]
+    fn md_replies_decode_with_and_without_data() {
+        let mut d = ReplyDecoder::new();
+        d.push(b"MD0044004601001\n00P\n\n");
+        let first = d.next_reply().unwrap().unwrap();
+        assert!(first.ok() && first.timestamp_ms.is_none());
+        let scan = Reply::distance_encoded(b"MD0044004601000", *b"99", 7, &[1234, 20, 4095], 2);
+        d.push(&scan.to_bytes());
+        let r = d.next_reply().unwrap().unwrap();
+        assert_eq!((r.status, r.timestamp_ms), (*b"99", Some(7)));
+        assert_eq!(r.data, b"CB0Doo".to_vec());
     }
 
     #[test]

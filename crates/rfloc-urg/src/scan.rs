@@ -68,13 +68,19 @@ impl Scan {
         let field = |range: std::ops::Range<usize>| -> Option<u16> {
             std::str::from_utf8(echo.get(range)?).ok()?.parse().ok()
         };
+        // Three characters per value for GD and MD, two for GS and MS.
+        let width = match echo.get(..2) {
+            Some(b"GD" | b"MD") => 3,
+            Some(b"GS" | b"MS") => 2,
+            _ => 0,
+        };
         let (Some(start), Some(end), Some(cluster)) = (
-            echo.starts_with(b"GD").then(|| field(2..6)).flatten(),
+            (width > 0).then(|| field(2..6)).flatten(),
             field(6..10),
             field(10..12),
         ) else {
             return Err(ScipError::Malformed {
-                why: "not a GD echo",
+                why: "not a GD, GS, MD or MS echo",
                 bytes: echo.clone(),
             });
         };
@@ -85,15 +91,15 @@ impl Scan {
             });
         }
         let cluster = u8::try_from(cluster.max(1)).unwrap_or(1);
-        if reply.data.len() % 3 != 0 || end < start {
+        if reply.data.len() % width != 0 || end < start {
             return Err(ScipError::Malformed {
-                why: "data is not whole three-character values",
+                why: "data is not whole values of the echo's width",
                 bytes: reply.data.clone(),
             });
         }
         let ranges_mm = reply
             .data
-            .chunks(3)
+            .chunks(width)
             .map(|c| decode(c).ok_or_else(|| ScipError::Encoding { chars: c.to_vec() }))
             .collect::<Result<Vec<u32>, _>>()?;
         let expected = usize::from(end - start) / usize::from(cluster) + 1;
@@ -137,6 +143,7 @@ mod tests {
             status: *b"00",
             timestamp_ms: Some(5),
             data: data.to_vec(),
+            lines: Vec::new(),
         }
     }
 

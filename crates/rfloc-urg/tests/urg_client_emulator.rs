@@ -51,3 +51,45 @@ async fn the_client_scans_the_emulated_sensor_over_a_pty() {
         Err(e) => assert_eq!(e.raw_os_error(), Some(5), "{e}"),
     }
 }
+
+/// A sensor of another geometry (a UTM-30LX's `PP`): the client reads it in the handshake and
+/// scans with it.
+#[tokio::test]
+async fn the_client_reads_the_geometry_from_pp() {
+    let utm = UrgGeometry {
+        steps_per_rev: 1440,
+        front_step: 540,
+        first_step: 0,
+        last_step: 1080,
+        min_mm: 23,
+        max_mm: 30_000,
+    };
+    let (master, slave) = tokio_serial::SerialStream::pair().unwrap();
+    let emulator = UrgEmulator::new(
+        Arc::new(wall_ahead),
+        EmulatorConfig {
+            geometry: utm,
+            identity: rfloc_urg::SensorIdentity {
+                model: "UTM-30LX(Hokuyo Automatic Co.,Ltd.)".into(),
+                scan_rpm: 2400,
+                ..rfloc_urg::SensorIdentity::default()
+            },
+            ..EmulatorConfig::default()
+        },
+    );
+    let server = tokio::spawn(async move { emulator.serve(master).await });
+    let (mut client, info) = UrgClient::connect(slave, UrgConfig::default())
+        .await
+        .unwrap();
+    assert_eq!(info.geometry, Some(utm));
+    assert_eq!(client.geometry(), utm);
+    assert_eq!(info.field("PROT"), Some("SCIP 2.0"));
+    assert_eq!(info.field("SCAN"), Some("2400"));
+    client.laser_on().await.unwrap();
+    let scan = client.scan().await.unwrap();
+    assert_eq!((scan.start_step, scan.end_step), (0, 1080));
+    assert_eq!(scan.ranges_mm.len(), 1081);
+    assert_eq!(scan.ranges_mm[540], 2000, "the wall straight ahead");
+    drop(client);
+    let _ = server.await.unwrap();
+}

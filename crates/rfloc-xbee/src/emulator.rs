@@ -1,7 +1,10 @@
 //! An XBee coordinator in API mode, emulated over any byte stream: answers `ND` with one
-//! response per beacon that hears it (then the end frame), local `DB`, remote `DB` (0x17), and
-//! a few registers (`NT`, `AP`, `SH`, `SL`, `NI`). Beacon RSSI comes from a supplied function,
-//! so a simulator can put path loss and an antenna pattern behind it.
+//! response per beacon that hears it (then the end frame), local `DB`, the local registers a
+//! host library reads when it opens a device (`HV`, `VR`, `SH`, `SL`, `MY`, `NI`, `CE`, `AP`,
+//! `AO`, `NT`, `NO`, `N?`, `ID`, `CH`, `OP`, …) with the values of an XBee S2C module running
+//! Zigbee or 802.15.4 firmware ([`Flavor`]), and remote AT (0x17: `DB`, `NI`, `SH`, `SL`, `MY`,
+//! `HV`, `VR`, `CE`) to the beacons. Beacon RSSI comes from a supplied function, so a
+//! simulator can put path loss and an antenna pattern behind it.
 //!
 //! Timing. Replies are scheduled on wall time (`response_spacing` between `ND` responses,
 //! `remote_failure_delay`). The coordinator sends nothing unsolicited, so with a zero
@@ -10,7 +13,7 @@
 //! move its clock while a round is in flight gets its replies at deterministic simulated times.
 
 use std::cmp::Reverse;
-use std::collections::BinaryHeap;
+use std::collections::{BTreeMap, BinaryHeap};
 use std::fmt;
 use std::sync::Arc;
 use std::time::Duration;
@@ -38,6 +41,15 @@ const STATUS_INVALID_COMMAND: u8 = 2;
 const STATUS_INVALID_PARAMETER: u8 = 3;
 const STATUS_TX_FAILURE: u8 = 4;
 
+/// Local registers a host may write (the others answer a write with status 3).
+const WRITABLE: [&[u8; 2]; 18] = [
+    b"NI", b"AO", b"NO", b"CE", b"ID", b"CH", b"MY", b"DH", b"DL", b"SM", b"EE", b"PL", b"PM",
+    b"SC", b"SD", b"NJ", b"MM", b"RR",
+];
+
+/// Commands that act rather than hold a value: write, apply, reset, discover-repeat.
+const EXECUTE: [&[u8; 2]; 4] = [b"WR", b"AC", b"FR", b"RE"];
+
 /// One emulated remote radio.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Beacon {
@@ -60,6 +72,33 @@ impl Beacon {
     }
 }
 
+/// Which firmware the emulated S2C module runs; decides the `VR`/`HV` pair (from which a host
+/// library such as digi-xbee tells the protocol) and the registers that exist.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Flavor {
+    /// Zigbee firmware (`VR` 0x4060): 64-bit `ID`/`OP`, `OI`, `ZS`, `AI`; a coordinator
+    /// (`CE` 1, `MY` 0x0000).
+    #[default]
+    Zigbee,
+    /// 802.15.4 firmware (`VR` 0x2003): 16-bit `ID`, `MM`, `RR`, `A1`/`A2`; a coordinator
+    /// (`CE` 1). Pair with [`NdLayout::Ieee802154`].
+    Ieee802154,
+}
+
+impl Flavor {
+    /// The firmware version (`VR`).
+    pub fn firmware_version(self) -> u16 {
+        match self {
+            Flavor::Zigbee => 0x4060,
+            Flavor::Ieee802154 => 0x2003,
+        }
+    }
+}
+
+/// Hardware version (`HV`) of the emulated module: 0x2E is the XBee S2C through-hole (XB24C
+/// TH-DIP) in Digi's hardware table, the low byte a revision.
+pub const S2C_HARDWARE_VERSION: u16 = 0x2E41;
+
 /// Emulator settings.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct EmulatorConfig {
@@ -79,6 +118,8 @@ pub struct EmulatorConfig {
     pub append_rssi: bool,
     /// Delay before answering a remote command to a beacon that is not heard (status 4).
     pub remote_failure_delay: Duration,
+    /// Firmware of the emulated module (default Zigbee).
+    pub flavor: Flavor,
 }
 
 impl Default for EmulatorConfig {
@@ -92,6 +133,7 @@ impl Default for EmulatorConfig {
             nd_layout: NdLayout::ZigbeeOrDigiMesh,
             append_rssi: false,
             remote_failure_delay: Duration::from_millis(5),
+            flavor: Flavor::Zigbee,
         }
     }
 }
@@ -156,6 +198,8 @@ impl Ord for Scheduled {
 /// Per-connection state.
 struct Session {
     nt_units: u8,
+    /// Local registers other than `NT`, `DB`, `AP` and `N?`, by name.
+    registers: BTreeMap<[u8; 2], Vec<u8>>,
     last_heard: Option<usize>,
     outbox: BinaryHeap<Reverse<Scheduled>>,
     seq: u64,
@@ -199,6 +243,7 @@ impl CoordinatorEmulator {
         let mut decoder = FrameDecoder::new(self.config.mode);
         let mut session = Session {
             nt_units: self.config.nt_units,
+            registers: self.local_registers(),
             last_heard: None,
             outbox: BinaryHeap::new(),
             seq: 0,
@@ -301,19 +346,85 @@ impl CoordinatorEmulator {
                     .map_or(0, dbm_to_rssi_byte);
                 (STATUS_OK, vec![rssi])
             }
-            AtCommandName::AP => (STATUS_OK, vec![self.config.mode.ap_value()]),
-            AtCommandName::SH => (
-                STATUS_OK,
-                self.config.own_address.high().to_be_bytes().to_vec(),
-            ),
-            AtCommandName::SL => (
-                STATUS_OK,
-                self.config.own_address.low().to_be_bytes().to_vec(),
-            ),
-            AtCommandName::NI => (STATUS_OK, b"coordinator".to_vec()),
-            _ => (STATUS_INVALID_COMMAND, Vec::new()),
+            AtCommandName::AP => match c.parameter.as_slice() {
+                [] => (STATUS_OK, vec![self.config.mode.ap_value()]),
+                [v] if *v == self.config.mode.ap_value() => (STATUS_OK, Vec::new()),
+                _ => (STATUS_INVALID_PARAMETER, Vec::new()),
+            },
+            AtCommandName(name) if &name == b"N?" => {
+                // The longest an ND round can take, ms: the NT window.
+                let ms = u16::from(session.nt_units) * 100;
+                (STATUS_OK, ms.to_be_bytes().to_vec())
+            }
+            AtCommandName(name) if EXECUTE.contains(&&name) => (STATUS_OK, Vec::new()),
+            AtCommandName(name) => match (session.registers.get_mut(&name), c.parameter.is_empty())
+            {
+                (Some(value), true) => (STATUS_OK, value.clone()),
+                (Some(value), false) if WRITABLE.contains(&&name) => {
+                    *value = c.parameter.clone();
+                    (STATUS_OK, Vec::new())
+                }
+                (Some(_), false) => (STATUS_INVALID_PARAMETER, Vec::new()),
+                (None, _) => (STATUS_INVALID_COMMAND, Vec::new()),
+            },
         };
         session.schedule(now, reply(status, data), None);
+    }
+
+    /// The local registers of the emulated S2C module at power-up (values as an S2C reports
+    /// them; see docs/protocols/xbee-api.md §emulator).
+    fn local_registers(&self) -> BTreeMap<[u8; 2], Vec<u8>> {
+        let own = self.config.own_address;
+        let mut r: BTreeMap<[u8; 2], Vec<u8>> = BTreeMap::new();
+        let mut set = |name: &[u8; 2], value: &[u8]| {
+            r.insert(*name, value.to_vec());
+        };
+        set(b"HV", &S2C_HARDWARE_VERSION.to_be_bytes());
+        set(b"VR", &self.config.flavor.firmware_version().to_be_bytes());
+        set(b"SH", &own.high().to_be_bytes());
+        set(b"SL", &own.low().to_be_bytes());
+        set(b"NI", b"coordinator");
+        set(b"CE", &[1]);
+        set(b"AO", &[0]);
+        set(b"NO", &[u8::from(self.config.append_rssi) << 2]);
+        set(b"BD", &[3]); // 9600 baud
+        set(b"SM", &[0]);
+        set(b"EE", &[0]);
+        set(b"PL", &[4]);
+        set(b"PM", &[1]);
+        set(b"DH", &[0]);
+        set(b"DL", &[0]);
+        set(b"SC", &0x7FFF_u16.to_be_bytes());
+        set(b"SD", &[3]);
+        set(b"%V", &3300_u16.to_be_bytes());
+        set(b"TP", &[0x19]);
+        set(b"DD", &0x0012_0000_u32.to_be_bytes());
+        match self.config.flavor {
+            Flavor::Zigbee => {
+                set(b"MY", &[0, 0]);
+                set(b"MP", &0xFFFE_u16.to_be_bytes());
+                set(b"ID", &0x1234_u64.to_be_bytes());
+                set(b"OP", &0x1234_u64.to_be_bytes());
+                set(b"OI", &0x7A5C_u16.to_be_bytes());
+                set(b"CH", &[0x0F]);
+                set(b"ZS", &[0]);
+                set(b"AI", &[0]);
+                set(b"NP", &0x0054_u16.to_be_bytes());
+                set(b"NJ", &[0xFF]);
+            }
+            Flavor::Ieee802154 => {
+                set(b"MY", &[0, 0]);
+                set(b"ID", &0x3332_u16.to_be_bytes());
+                set(b"CH", &[0x0C]);
+                set(b"MM", &[0]);
+                set(b"RR", &[0]);
+                set(b"A1", &[0]);
+                set(b"A2", &[0]);
+                set(b"AI", &[0]);
+                set(b"NP", &0x0064_u16.to_be_bytes());
+            }
+        }
+        r
     }
 
     fn start_discovery(&self, c: &AtCommand, session: &mut Session, now: Instant) {
@@ -401,6 +512,18 @@ impl CoordinatorEmulator {
             (AtCommandName::NI, true) => (STATUS_OK, beacon.ni.as_bytes().to_vec()),
             (AtCommandName::SH, true) => (STATUS_OK, beacon.address.high().to_be_bytes().to_vec()),
             (AtCommandName::SL, true) => (STATUS_OK, beacon.address.low().to_be_bytes().to_vec()),
+            (AtCommandName(n), true) if &n == b"MY" => {
+                (STATUS_OK, beacon.network_address.0.to_be_bytes().to_vec())
+            }
+            (AtCommandName(n), true) if &n == b"HV" => {
+                (STATUS_OK, S2C_HARDWARE_VERSION.to_be_bytes().to_vec())
+            }
+            (AtCommandName(n), true) if &n == b"VR" => (
+                STATUS_OK,
+                self.config.flavor.firmware_version().to_be_bytes().to_vec(),
+            ),
+            // The beacons are routers (Zigbee) or end devices (802.15.4): CE 0.
+            (AtCommandName(n), true) if &n == b"CE" => (STATUS_OK, vec![0]),
             _ => (STATUS_INVALID_COMMAND, Vec::new()),
         };
         session.schedule(now, reply(beacon.network_address, status, data), Some(i));

@@ -58,7 +58,10 @@ pub use codec::{
     checksum, encode_frame, ApiMode, DecodeError, DecodeStats, EncodeError, FrameDecoder,
 };
 #[cfg(feature = "emulator")]
-pub use emulator::{Beacon, CoordinatorEmulator, EmulatorConfig, EmulatorStats, RssiFn};
+pub use emulator::{
+    Beacon, CoordinatorEmulator, EmulatorConfig, EmulatorStats, Flavor, RssiFn,
+    S2C_HARDWARE_VERSION,
+};
 pub use frame::{
     AtCommand, AtCommandName, AtResponse, AtStatus, ExplicitReceive, Frame, FrameError,
     ModemStatus, NodeIdentification, ReceivePacket, RemoteAtCommand, RemoteAtResponse,
