@@ -94,7 +94,11 @@ pub struct Replayer {
     hold_open: bool,
     reads_only_clock: bool,
     clock: Option<Arc<ManualClock>>,
+    skip_unknown: bool,
 }
+
+/// How many recorded requests ahead a request the recording does not expect next is looked for.
+const LOOKAHEAD: usize = 16;
 
 impl Replayer {
     /// A fast, lenient stream replay that ends with end-of-file.
@@ -108,7 +112,19 @@ impl Replayer {
             hold_open: false,
             reads_only_clock: false,
             clock: None,
+            skip_unknown: false,
         }
+    }
+
+    /// Request/response mode, for drivers newer than the recording: a request that differs
+    /// from the one recorded next is looked for among the next recorded requests; found, the
+    /// replay skips to it (the exchanges in between are dropped); not found, it gets no reply
+    /// at all, as from a device that ignores it, and the recording waits where it was. Both are
+    /// reported as mismatches. Off by default: every request takes the next recorded reply.
+    #[must_use]
+    pub fn skip_unknown_requests(mut self, on: bool) -> Self {
+        self.skip_unknown = on;
+        self
     }
 
     /// Sets this clock to the recorded times instead of a new one (a device's stamp clock,
@@ -174,6 +190,7 @@ impl Replayer {
             strict: self.strict,
             hold_open: self.hold_open,
             reads_only_clock: self.reads_only_clock,
+            skip_unknown: self.skip_unknown,
             cursor: 0,
             rx_offset: 0,
             tx_cursor: first_tx,
@@ -245,6 +262,7 @@ struct ReplayState {
     strict: bool,
     hold_open: bool,
     reads_only_clock: bool,
+    skip_unknown: bool,
     /// Next record to deliver.
     cursor: usize,
     /// Bytes of the current rx record already delivered.
@@ -316,6 +334,9 @@ impl ReplayState {
         let actual = std::mem::take(&mut self.pending);
         let request = self.report.requests;
         self.report.requests += 1;
+        if !exact && self.skip_unknown {
+            return Ok(self.skip_to(actual, expected, t, request));
+        }
         if self.tx_cursor < self.records.len() {
             self.tx_cursor = next_tx(&self.records, self.tx_cursor + 1);
         }
@@ -337,6 +358,46 @@ impl ReplayState {
         self.wake_reader();
         self.publish();
         result
+    }
+}
+
+impl ReplayState {
+    /// [`Replayer::skip_unknown_requests`]: finds `actual` among the next recorded requests.
+    fn skip_to(&mut self, actual: Vec<u8>, expected: Vec<u8>, t: u64, request: usize) {
+        let mut at = self.tx_cursor;
+        let mut found = None;
+        for _ in 0..LOOKAHEAD {
+            match self.records.get(at) {
+                Some(Record {
+                    kind: RecordKind::Tx(b),
+                    ..
+                }) if *b == actual => {
+                    found = Some(at);
+                    break;
+                }
+                Some(_) => at = next_tx(&self.records, at + 1),
+                None => break,
+            }
+        }
+        #[allow(clippy::cast_precision_loss)]
+        let m = Mismatch {
+            request,
+            t: t as f64 * 1e-9,
+            expected,
+            actual,
+        };
+        match found {
+            Some(j) => {
+                tracing::debug!(%m, "replay: skipping recorded exchanges to the driver's request");
+                self.cursor = j;
+                self.rx_offset = 0;
+                self.tx_cursor = next_tx(&self.records, j + 1);
+                self.wake_reader();
+            }
+            None => tracing::debug!(%m, "replay: a request the recording does not hold gets no reply"),
+        }
+        self.report.mismatches.push(m);
+        self.publish();
     }
 }
 
@@ -467,6 +528,35 @@ mod tests {
 
     fn cap(text: &str) -> Capture {
         Capture::parse(text, "t").unwrap()
+    }
+
+    #[tokio::test(start_paused = true)]
+    async fn unknown_requests_get_no_reply_and_known_ones_skip_ahead() {
+        let c = cap("# rfloc-capture 1\n0.1 tx s:BM\\n\n0.2 rx s:BM\\n00P\\n\\n\n0.3 tx s:GD1\\n\n0.4 rx s:one\\n\n0.5 tx s:GD2\\n\n0.6 rx s:two\\n\n");
+        let (mut io, handle) = Replayer::new(c)
+            .mode(ReplayMode::RequestResponse)
+            .skip_unknown_requests(true)
+            .start();
+        let mut buf = [0u8; 64];
+        // A request a newer driver sends first is not in the recording: no reply.
+        io.write_all(b"SCIP2.0\n").await.unwrap();
+        io.flush().await.unwrap();
+        let r = tokio::time::timeout(std::time::Duration::from_secs(1), io.read(&mut buf)).await;
+        assert!(r.is_err(), "an unknown request must not be answered");
+        // The recorded one next still gets its reply.
+        io.write_all(b"BM\n").await.unwrap();
+        io.flush().await.unwrap();
+        let n = io.read(&mut buf).await.unwrap();
+        assert_eq!(&buf[..n], b"BM\n00P\n\n");
+        // A request further on skips the exchange in between.
+        io.write_all(b"GD2\n").await.unwrap();
+        io.flush().await.unwrap();
+        let n = io.read(&mut buf).await.unwrap();
+        assert_eq!(&buf[..n], b"two\n");
+        let report = handle.report();
+        assert_eq!(report.mismatches.len(), 2);
+        assert_eq!(report.mismatches[0].actual, b"SCIP2.0\n");
+        assert_eq!(report.mismatches[1].expected, b"GD1\n");
     }
 
     #[tokio::test]

@@ -255,6 +255,7 @@ impl DeviceContext {
                 let (io, _handle) = Replayer::new(capture)
                     .mode(*mode)
                     .reads_only_clock(true)
+                    .skip_unknown_requests(true)
                     .with_clock(Arc::clone(&self.stamp))
                     .start();
                 Ok(Box::new(io))

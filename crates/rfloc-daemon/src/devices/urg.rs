@@ -122,7 +122,6 @@ pub fn scan_beams(
 
 async fn run(ctx: DeviceContext, settings: UrgSettings) {
     let period = Duration::from_secs_f64(settings.scan_period_s / ctx.time_scale.max(1e-6));
-    let geometry = UrgGeometry::default();
     let mut attempt = 0u32;
     while !ctx.stop.is_cancelled() {
         ctx.status(DeviceState::Connecting, "opening scanner").await;
@@ -135,7 +134,29 @@ async fn run(ctx: DeviceContext, settings: UrgSettings) {
                 continue;
             }
         };
-        let mut client = UrgClient::new(io, client_config(&settings));
+        // SCIP2.0, VV and PP: the sensor says what it is and its scan geometry.
+        let connected = tokio::select! {
+            () = ctx.stop.cancelled() => return,
+            r = UrgClient::connect(io, client_config(&settings)) => r,
+        };
+        let mut client = match connected {
+            Ok((client, info)) => {
+                let model = info
+                    .parameters
+                    .iter()
+                    .find(|(k, _)| k == "MODL")
+                    .map_or("unknown model", |(_, v)| v.as_str());
+                tracing::info!(model, geometry = ?client.geometry(), "scanner identified");
+                client
+            }
+            Err(e) => {
+                if !retry_later(&ctx, &mut attempt, format!("handshake: {e}")).await {
+                    return;
+                }
+                continue;
+            }
+        };
+        let geometry = client.geometry();
         let on = tokio::select! {
             () = ctx.stop.cancelled() => return,
             r = client.laser_on() => r,
