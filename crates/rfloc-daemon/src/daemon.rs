@@ -165,7 +165,9 @@ pub async fn run(
     )
     .map_err(|e| anyhow::anyhow!("pipeline {}: {e}", cfg.estimator.name()))?;
     let order_log = match &capture_dir {
-        Some(dir) => Some(estimator::create_order_log(dir).context("creating the pipeline order log")?),
+        Some(dir) => {
+            Some(estimator::create_order_log(dir).context("creating the pipeline order log")?)
+        }
         None => None,
     };
     let worker = Worker {
@@ -192,7 +194,8 @@ pub async fn run(
         },
         print_observations: false,
     };
-    let thread = estimator::spawn(worker, ESTIMATOR_QUEUE).context("starting the estimator thread")?;
+    let thread =
+        estimator::spawn(worker, ESTIMATOR_QUEUE).context("starting the estimator thread")?;
     tracing::info!(pipeline = cfg.estimator.name(), "estimator ready");
 
     notify::ready();
@@ -212,15 +215,16 @@ pub async fn run(
         stale: StaleWatch::new(&cfg, time_scale),
         last_consumed: (0, tokio::time::Instant::now()),
     };
-    router
-        .run(ev_rx, &stop, deadline, &tasks)
-        .await;
+    router.run(ev_rx, &stop, deadline, &tasks).await;
 
     notify::stopping();
     tracing::info!("stopping: halting the robot and closing devices");
     stop.cancel();
     for (name, t) in tasks {
-        if tokio::time::timeout(Duration::from_secs(5), t).await.is_err() {
+        if tokio::time::timeout(Duration::from_secs(5), t)
+            .await
+            .is_err()
+        {
             tracing::warn!(device = %name, "device task did not stop within 5 s");
         }
     }
@@ -313,7 +317,13 @@ impl Router {
             let driver = self.stale.driver(&name);
             self.hub.publish_device(
                 &name,
-                message::device_json(&name, driver, DeviceState::Connected, "data again", SystemTime::now()),
+                message::device_json(
+                    &name,
+                    driver,
+                    DeviceState::Connected,
+                    "data again",
+                    SystemTime::now(),
+                ),
             );
         }
         self.backlog.push_back(event);
@@ -341,7 +351,10 @@ impl Router {
             self.backlog.pop_front();
             self.dropped += 1;
             if self.dropped.is_power_of_two() {
-                tracing::error!(dropped = self.dropped, "estimator far behind: oldest observations dropped");
+                tracing::error!(
+                    dropped = self.dropped,
+                    "estimator far behind: oldest observations dropped"
+                );
             }
         }
     }
@@ -372,7 +385,10 @@ impl Router {
             .map(|(n, _)| n.as_str())
             .collect();
         if !estimator_ok {
-            tracing::error!(backlog = self.progress.backlog(), "estimator not consuming: watchdog not fed");
+            tracing::error!(
+                backlog = self.progress.backlog(),
+                "estimator not consuming: watchdog not fed"
+            );
         }
         if !dead.is_empty() {
             tracing::error!(devices = ?dead, "device task ended: watchdog not fed");

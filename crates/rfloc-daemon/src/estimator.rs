@@ -231,7 +231,9 @@ impl Worker {
             let ns = rfloc_transport::clock_ns(&FixedClock(t));
             if writeln!(f, "{device}\t{ns}").is_err() {
                 self.outputs.order_log = None;
-                tracing::error!("pipeline order log write failed; the rest of the run is not logged");
+                tracing::error!(
+                    "pipeline order log write failed; the rest of the run is not logged"
+                );
             }
         }
     }

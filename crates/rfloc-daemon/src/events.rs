@@ -172,7 +172,6 @@ impl DeviceState {
     }
 }
 
-
 /// The four fixed reflectors of the emitter-homing robot, 90° apart.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -208,7 +207,9 @@ impl DeviceEvent {
                 pose,
                 v,
                 w,
-            } => json!({"observation": "odometry", "device": device, "t": t, "x": pose.x, "y": pose.y, "theta": pose.theta, "v": v, "w": w}),
+            } => {
+                json!({"observation": "odometry", "device": device, "t": t, "x": pose.x, "y": pose.y, "theta": pose.theta, "v": v, "w": w})
+            }
             DeviceEvent::WheelStall { device, t } => {
                 json!({"observation": "wheel_stall", "device": device, "t": t})
             }
@@ -217,16 +218,23 @@ impl DeviceEvent {
                 t,
                 front,
                 rear,
-            } => json!({"observation": "bumpers", "device": device, "t": t, "front": front, "rear": rear}),
+            } => {
+                json!({"observation": "bumpers", "device": device, "t": t, "front": front, "rear": rear})
+            }
             DeviceEvent::HfTag {
                 device,
                 t,
                 uid,
                 rssi,
                 rssi_second,
-            } => json!({"observation": "hf_tag", "device": device, "t": t, "uid": uid, "rssi": rssi, "rssi_second": rssi_second}),
+            } => {
+                json!({"observation": "hf_tag", "device": device, "t": t, "uid": uid, "rssi": rssi, "rssi_second": rssi_second})
+            }
             DeviceEvent::UhfSnapshot { device, t, tags } => {
-                let tags: Vec<_> = tags.iter().map(|(id, rss)| json!({"id": id, "rss": rss})).collect();
+                let tags: Vec<_> = tags
+                    .iter()
+                    .map(|(id, rss)| json!({"id": id, "rss": rss}))
+                    .collect();
                 json!({"observation": "uhf_snapshot", "device": device, "t": t, "tags": tags})
             }
             DeviceEvent::Sweep { device, t, result } => match result {
@@ -244,7 +252,9 @@ impl DeviceEvent {
                 t,
                 antenna,
                 dbm,
-            } => json!({"observation": "emitter_rss", "device": device, "t": t, "antenna": antenna.as_str(), "dbm": dbm}),
+            } => {
+                json!({"observation": "emitter_rss", "device": device, "t": t, "antenna": antenna.as_str(), "dbm": dbm})
+            }
             DeviceEvent::RangeScan { device, t, beams } => {
                 let ranges: Vec<f64> = beams.iter().map(|b| b.range_m).collect();
                 let angles: Vec<f64> = beams.iter().map(|b| b.angle_rad).collect();
@@ -258,7 +268,9 @@ impl DeviceEvent {
                 driver,
                 state,
                 detail,
-            } => json!({"observation": "status", "device": device, "driver": driver, "state": state.as_str(), "detail": detail}),
+            } => {
+                json!({"observation": "status", "device": device, "driver": driver, "state": state.as_str(), "detail": detail})
+            }
         };
         v.to_string()
     }

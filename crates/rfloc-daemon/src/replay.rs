@@ -81,7 +81,8 @@ fn sessions(capture: &Capture) -> VecDeque<Capture> {
     let mut out: VecDeque<Capture> = VecDeque::new();
     let mut current: Vec<Record> = Vec::new();
     for r in &capture.records {
-        if matches!(&r.kind, RecordKind::Event(t) if t == "mark link opened") && !current.is_empty() {
+        if matches!(&r.kind, RecordKind::Event(t) if t == "mark link opened") && !current.is_empty()
+        {
             out.push_back(Capture {
                 header: capture.header.clone(),
                 records: std::mem::take(&mut current),
@@ -107,9 +108,7 @@ fn marks(capture: &Capture) -> impl Iterator<Item = (f64, &str)> {
 
 /// Marks a device task writes itself (not observations of the world).
 fn is_driver_mark(text: &str) -> bool {
-    text == "link opened"
-        || text.starts_with("snapshot reads=")
-        || SweepMark::parse(text).is_some()
+    text == "link opened" || text.starts_with("snapshot reads=") || SweepMark::parse(text).is_some()
 }
 
 /// The devices of the folder: the robot file's (those with a capture), or one per capture.
@@ -128,7 +127,10 @@ fn devices(caps: &[Recorded], cfg: Option<&RobotConfig>) -> anyhow::Result<Vec<D
                     )
                 })?;
                 let driver = kind.for_capture(&capture_device).with_context(|| {
-                    format!("{}.cap: {capture_device:?} cannot be replayed without a robot file", rec.name)
+                    format!(
+                        "{}.cap: {capture_device:?} cannot be replayed without a robot file",
+                        rec.name
+                    )
                 })?;
                 DeviceConfig {
                     name: rec.name.clone(),
@@ -199,14 +201,19 @@ fn read_order_log(dir: &Path) -> anyhow::Result<Option<Vec<(String, u64)>>> {
     if !path.exists() {
         return Ok(None);
     }
-    let text = std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+    let text =
+        std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
     anyhow::ensure!(
         text.lines().next() == Some(ORDER_LOG_HEADER),
         "{}: not a pipeline order log",
         path.display()
     );
     let mut out = Vec::new();
-    for (i, line) in text.lines().enumerate().filter(|(_, l)| !l.starts_with('#')) {
+    for (i, line) in text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.starts_with('#'))
+    {
         let (device, ns) = line
             .split_once('\t')
             .and_then(|(d, n)| Some((d.to_string(), n.parse::<u64>().ok()?)))
@@ -395,7 +402,8 @@ pub async fn replay_lines(dir: &Path, opts: &ReplayOptions) -> anyhow::Result<Ve
         pipeline,
         format: PoseFormat {
             frame_id: cfg.map_or_else(|| "map".into(), |c| c.robot.frame_id.clone()),
-            child_frame_id: cfg.map_or_else(|| "base_link".into(), |c| c.robot.child_frame_id.clone()),
+            child_frame_id: cfg
+                .map_or_else(|| "base_link".into(), |c| c.robot.child_frame_id.clone()),
             precision: cfg.map_or(4, |c| c.pose.precision),
             origin,
         },
@@ -479,7 +487,11 @@ pub async fn replay_lines(dir: &Path, opts: &ReplayOptions) -> anyhow::Result<Ve
             }
             let next_device = replayed
                 .iter()
-                .filter_map(|r| r.buffer.front().map(|e| (e.time().unwrap_or(0.0), r.name.clone())))
+                .filter_map(|r| {
+                    r.buffer
+                        .front()
+                        .map(|e| (e.time().unwrap_or(0.0), r.name.clone()))
+                })
                 .min_by(|a, b| a.0.total_cmp(&b.0).then_with(|| a.1.cmp(&b.1)));
             let mark_first = match (&next_device, world_marks.front()) {
                 (Some((t, _)), Some(m)) => m.time().unwrap_or(0.0) <= *t,

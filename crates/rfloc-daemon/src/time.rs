@@ -56,9 +56,10 @@ impl TimeOrigin {
     pub fn rfc3339(self) -> String {
         let secs = self.unix_ns.div_euclid(NS);
         let nanos = self.unix_ns.rem_euclid(NS);
-        let Ok(t) = i64::try_from(secs).map_err(|_| ()).and_then(|s| {
-            OffsetDateTime::from_unix_timestamp(s).map_err(|_| ())
-        }) else {
+        let Ok(t) = i64::try_from(secs)
+            .map_err(|_| ())
+            .and_then(|s| OffsetDateTime::from_unix_timestamp(s).map_err(|_| ()))
+        else {
             return "1970-01-01T00:00:00.000000000Z".into();
         };
         let base = t
@@ -79,7 +80,7 @@ impl TimeOrigin {
         secs + (frac + t)
     }
 
-    /// ISO 8601 (UTC, milliseconds) of the instant `t` seconds after the origin.
+    /// ISO 8601 (UTC, milliseconds, truncated) of the instant `t` seconds after the origin.
     #[must_use]
     pub fn iso8601(self, t: f64) -> String {
         let offset_ns = if t.is_finite() {
@@ -124,7 +125,7 @@ mod tests {
         // Old captures carry whole seconds.
         let whole = TimeOrigin::parse_rfc3339("2026-11-21T10:00:00Z").unwrap();
         assert_eq!(whole.unix_ns(), 1_795_255_200 * NS);
-        assert_eq!(whole.iso8601(14.776_625), "2026-11-21T10:00:14.777Z");
+        assert_eq!(whole.iso8601(14.776_625), "2026-11-21T10:00:14.776Z");
         assert!((whole.stamp(14.776_625) - 1_795_255_214.776_625).abs() < 1e-6);
         assert!(TimeOrigin::parse_rfc3339("yesterday").is_err());
     }

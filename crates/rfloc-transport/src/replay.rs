@@ -394,7 +394,9 @@ impl ReplayState {
                 self.tx_cursor = next_tx(&self.records, j + 1);
                 self.wake_reader();
             }
-            None => tracing::debug!(%m, "replay: a request the recording does not hold gets no reply"),
+            None => {
+                tracing::debug!(%m, "replay: a request the recording does not hold gets no reply")
+            }
         }
         self.report.mismatches.push(m);
         self.publish();

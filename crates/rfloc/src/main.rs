@@ -167,7 +167,9 @@ fn embedded() -> Result<RobotConfig, ExitCode> {
 
 #[cfg(not(feature = "lab"))]
 fn embedded() -> Result<RobotConfig, ExitCode> {
-    eprintln!("rfloc: this build has no simulator (cargo feature `lab`); give a robot file with -c");
+    eprintln!(
+        "rfloc: this build has no simulator (cargo feature `lab`); give a robot file with -c"
+    );
     Err(ExitCode::from(EX_CONFIG))
 }
 

@@ -137,10 +137,20 @@ fn every_error_of_a_file_is_reported_with_its_line_and_column() {
     assert_eq!(code, 78, "{text}");
     let lines: Vec<&str> = text.lines().collect();
     assert_eq!(lines.len(), 4, "{text}");
-    assert!(lines[0].starts_with("many.toml:3:1: key `robot.colour`") || lines[0].contains("many.toml:3:1: key `robot.colour`"), "{text}");
-    assert!(lines[1].contains(":10:1: key `device[0].driver.resync_after_s`"), "{text}");
+    assert!(
+        lines[0].starts_with("many.toml:3:1: key `robot.colour`")
+            || lines[0].contains("many.toml:3:1: key `robot.colour`"),
+        "{text}"
+    );
+    assert!(
+        lines[1].contains(":10:1: key `device[0].driver.resync_after_s`"),
+        "{text}"
+    );
     assert!(lines[2].contains(":17:1: key `pose.precision`"), "{text}");
-    assert!(lines[3].contains(":18:1: key `pose.client_queue`"), "{text}");
+    assert!(
+        lines[3].contains(":18:1: key `pose.client_queue`"),
+        "{text}"
+    );
 }
 
 #[test]
@@ -155,7 +165,10 @@ fn an_hf_robot_without_its_floor_tags_is_refused() {
     assert_ne!(no_map, shipped);
     let (code, text) = validate(&write(&dir, "hf.toml", &no_map), &["--no-device-check"]);
     assert_eq!(code, 78, "{text}");
-    assert!(text.contains("key `estimator.pipeline`") && text.contains("tags"), "{text}");
+    assert!(
+        text.contains("key `estimator.pipeline`") && text.contains("tags"),
+        "{text}"
+    );
     // A UID that is not hex is refused at validate, not warned about at run time.
     let bad = BASE.replace(
         "tag_field = \"seed002-test\"",

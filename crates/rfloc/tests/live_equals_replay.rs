@@ -90,7 +90,8 @@ fn record_and_replay(robot: &Path, dir: &Path) -> Vec<String> {
     let live = estimate_lines(&live.stdout);
     let replayed = estimate_lines(&replay.stdout);
     assert!(!live.is_empty(), "the live run published nothing");
-    if let Some(i) = (0..live.len().max(replayed.len())).find(|i| live.get(*i) != replayed.get(*i)) {
+    if let Some(i) = (0..live.len().max(replayed.len())).find(|i| live.get(*i) != replayed.get(*i))
+    {
         panic!(
             "line {} of {} live / {} replayed differs:\nlive:     {:?}\nreplayed: {:?}",
             i + 1,
@@ -113,7 +114,10 @@ fn hfgrid_live_equals_replay() {
         &[("time_scale = 5.0", "time_scale = 10.0")],
     );
     let lines = record_and_replay(&robot, dir.path());
-    assert!(lines.iter().any(|l| l.contains("\"mode\":\"fix\"")), "no fix");
+    assert!(
+        lines.iter().any(|l| l.contains("\"mode\":\"fix\"")),
+        "no fix"
+    );
 }
 
 #[test]
@@ -146,7 +150,10 @@ fn ekfslam_live_equals_replay() {
         ],
     );
     let lines = record_and_replay(&robot, dir.path());
-    assert!(lines.iter().any(|l| l.contains("\"mode\":\"fix\"")), "no fix");
+    assert!(
+        lines.iter().any(|l| l.contains("\"mode\":\"fix\"")),
+        "no fix"
+    );
 }
 
 #[test]
@@ -191,7 +198,11 @@ fn snapshot_live_equals_replay() {
         .arg(&explore)
         .output()
         .unwrap();
-    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
     let trial = explore.join("trial-00");
     let robot = robot_file(
         dir.path(),

@@ -36,7 +36,11 @@ fn every_capture_replays_to_its_golden_output() {
             String::from_utf8_lossy(&out.stderr)
         );
         let got = String::from_utf8(out.stdout).unwrap();
-        assert!(!got.is_empty(), "{}: the replay printed nothing", dir.display());
+        assert!(
+            !got.is_empty(),
+            "{}: the replay printed nothing",
+            dir.display()
+        );
         // A folder with a pose pipeline prints poses; a device on its own, its observations.
         let golden = if got.starts_with("{\"class\"") {
             "expected-poses.jsonl"

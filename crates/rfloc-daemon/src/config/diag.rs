@@ -167,7 +167,9 @@ impl<'i> Diagnostics<'i> {
             return Ok(());
         }
         self.errors.sort_by_key(|(offset, _)| *offset);
-        Err(ConfigErrors(self.errors.into_iter().map(|(_, e)| e).collect()))
+        Err(ConfigErrors(
+            self.errors.into_iter().map(|(_, e)| e).collect(),
+        ))
     }
 }
 
@@ -391,7 +393,6 @@ pub struct SectionContext<'a> {
     pub check_files: bool,
 }
 
-
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
 mod tests {
@@ -409,7 +410,13 @@ mod tests {
         let errs = d.finish().unwrap_err();
         let lines: Vec<String> = errs.0.iter().map(ToString::to_string).collect();
         assert_eq!(lines[0], "f.toml:5:1: key `device[0].name`: dup");
-        assert_eq!(lines[1], "f.toml:9:9: key `device[1].driver.discovery_timeout_s`: bad");
-        assert_eq!(lines[2], "f.toml:11:1: key `device[1].driver.api_mode`: must be 1 or 2");
+        assert_eq!(
+            lines[1],
+            "f.toml:9:9: key `device[1].driver.discovery_timeout_s`: bad"
+        );
+        assert_eq!(
+            lines[2],
+            "f.toml:11:1: key `device[1].driver.api_mode`: must be 1 or 2"
+        );
     }
 }

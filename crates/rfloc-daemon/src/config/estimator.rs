@@ -68,7 +68,10 @@ impl EstimatorConfig {
     /// Parses `[estimator]`: `pipeline` selects the settings type.
     pub(crate) fn parse<'i>(node: &Node<'i>, diag: &mut Diagnostics<'i>) -> Option<Self> {
         let Some(pipeline) = get(node, "pipeline") else {
-            diag.error("estimator.pipeline", format!("missing: one of {}", PIPELINES.join(", ")));
+            diag.error(
+                "estimator.pipeline",
+                format!("missing: one of {}", PIPELINES.join(", ")),
+            );
             return None;
         };
         let Some(name) = string(pipeline) else {
@@ -123,19 +126,30 @@ fn check_hfgrid(h: &HfGridSettings, c: &mut Checks<'_, '_>, env: &EstimatorEnv<'
     c.range("antenna_offset_m", h.antenna_offset_m, -1.0, 1.0, " m");
     for (i, t) in h.tags.iter().enumerate() {
         let mut tc = c.nested(&format!("tag[{i}]"));
-        if t.uid.trim().is_empty() || t.uid.trim().len() > 16 || u64::from_str_radix(t.uid.trim(), 16).is_err() {
-            tc.error("uid", format!("{:?} is not a tag UID (16 hex digits)", t.uid));
+        if t.uid.trim().is_empty()
+            || t.uid.trim().len() > 16
+            || u64::from_str_radix(t.uid.trim(), 16).is_err()
+        {
+            tc.error(
+                "uid",
+                format!("{:?} is not a tag UID (16 hex digits)", t.uid),
+            );
         }
         tc.range("x", t.x, -1e5, 1e5, " m");
         tc.range("y", t.y, -1e5, 1e5, " m");
     }
     if let Some(field) = &h.tag_field {
         if crate::pipeline::builtin_tag_field(field).is_none() {
-            c.error("tag_field", format!("{field:?} is not a built-in field (seed002-test)"));
+            c.error(
+                "tag_field",
+                format!("{field:?} is not a built-in field (seed002-test)"),
+            );
         }
     }
     if let Some(path) = &h.tag_map {
-        let full = env.config_dir.map_or_else(|| path.clone(), |d| d.join(path));
+        let full = env
+            .config_dir
+            .map_or_else(|| path.clone(), |d| d.join(path));
         if env.check_files {
             if let Err(e) = crate::pipeline::load_tag_map(&full) {
                 c.error("tag_map", e);
@@ -157,14 +171,37 @@ fn check_ekfslam(e: &EkfSlamSettings, c: &mut Checks<'_, '_>) {
     c.positive("sweep_timeout_s", e.sweep_timeout_s, 3600.0, " s");
     c.positive("range_sigma_m", e.range_sigma_m, 1000.0, " m");
     c.positive("rssi_sigma_db", e.rssi_sigma_db, 100.0, " dB");
-    c.positive("beacon_init_max_std_m", e.beacon_init_max_std_m, 1000.0, " m");
+    c.positive(
+        "beacon_init_max_std_m",
+        e.beacon_init_max_std_m,
+        1000.0,
+        " m",
+    );
     c.positive("waypoint_switch_m", e.waypoint_switch_m, 100.0, " m");
     c.positive("max_speed_mps", e.max_speed_mps, 2.0, " m/s");
     c.positive("path_loss_exponent", e.path_loss_exponent, 10.0, "");
     c.range("bearing_floor_deg", e.bearing_floor_deg, 0.0, 180.0, "°");
-    c.range("odometry_trans_per_m", e.odometry_trans_per_m, 0.0, 10.0, "");
-    c.range("odometry_rot_per_rad", e.odometry_rot_per_rad, 0.0, 10.0, "");
-    c.range("odometry_rot_per_m", e.odometry_rot_per_m, 0.0, 10.0, " rad/m");
+    c.range(
+        "odometry_trans_per_m",
+        e.odometry_trans_per_m,
+        0.0,
+        10.0,
+        "",
+    );
+    c.range(
+        "odometry_rot_per_rad",
+        e.odometry_rot_per_rad,
+        0.0,
+        10.0,
+        "",
+    );
+    c.range(
+        "odometry_rot_per_m",
+        e.odometry_rot_per_m,
+        0.0,
+        10.0,
+        " rad/m",
+    );
     c.range("p_ref_dbm", e.p_ref_dbm, -150.0, 30.0, " dBm");
     if let Some(w) = &e.wheel_slip {
         let mut wc = c.nested("wheel_slip");
@@ -221,7 +258,13 @@ fn check_snapshot(s: &SnapshotSettings, c: &mut Checks<'_, '_>, env: &EstimatorE
             match std::fs::metadata(&path) {
                 Ok(m) if m.is_file() && m.len() > 0 => {}
                 Ok(_) => c.error(key, format!("{} is empty or not a file", path.display())),
-                Err(e) => c.error(key, format!("{}: {e} (learn it with `rfloc sim` or a survey run; [state] dir)", path.display())),
+                Err(e) => c.error(
+                    key,
+                    format!(
+                        "{}: {e} (learn it with `rfloc sim` or a survey run; [state] dir)",
+                        path.display()
+                    ),
+                ),
             }
         }
     }
@@ -242,7 +285,10 @@ fn check_emitter(e: &EmitterSettings, c: &mut Checks<'_, '_>) {
     }
     c.count("particles", e.particles as u64, 1, 1_000_000);
     if e.map_side_m / e.grid_cell_m > 20_000.0 {
-        c.error("map_side_m", "more than 20000 cells a side: use a larger grid_cell_m");
+        c.error(
+            "map_side_m",
+            "more than 20000 cells a side: use a larger grid_cell_m",
+        );
     }
 }
 
@@ -603,4 +649,3 @@ pub struct GridTag {
     pub x: f64,
     pub y: f64,
 }
-

@@ -22,7 +22,9 @@ use serde::Deserialize;
 use toml::de::{DeTable, DeValue};
 use toml::Spanned;
 
-pub use diag::{Checks, ConfigError, ConfigErrors, Diagnostics, Node, SectionCheck, SectionContext};
+pub use diag::{
+    Checks, ConfigError, ConfigErrors, Diagnostics, Node, SectionCheck, SectionContext,
+};
 pub use estimator::{
     EkfSlamSettings, EmitterSettings, EstimatorConfig, GridTag, HfGridSettings, SnapshotSettings,
     WheelSlipSettings, PIPELINES,
@@ -319,7 +321,12 @@ fn check_emitter_receivers(devices: &[DeviceConfig], diag: &mut Diagnostics<'_>)
     }
 }
 
-fn check_link(d: &DeviceConfig, c: &mut Checks<'_, '_>, env: &CheckEnv<'_>, opts: &LoadOptions<'_>) {
+fn check_link(
+    d: &DeviceConfig,
+    c: &mut Checks<'_, '_>,
+    env: &CheckEnv<'_>,
+    opts: &LoadOptions<'_>,
+) {
     match &d.link {
         None if d.driver.needs_link() && !env.simulated && !opts.for_replay => c.error(
             "link",
@@ -336,10 +343,9 @@ fn check_link(d: &DeviceConfig, c: &mut Checks<'_, '_>, env: &CheckEnv<'_>, opts
                 );
             }
         }
-        Some(LinkConfig::Tcp(t)) if !t.address.contains(':') => c.error(
-            "link.address",
-            format!("{:?} is not host:port", t.address),
-        ),
+        Some(LinkConfig::Tcp(t)) if !t.address.contains(':') => {
+            c.error("link.address", format!("{:?} is not host:port", t.address))
+        }
         _ => {}
     }
 }
@@ -384,10 +390,7 @@ fn parse_root<'i>(diag: &mut Diagnostics<'i>, dir: Option<&Path>, opts: &LoadOpt
             }
             None => diag.error(
                 name,
-                format!(
-                    "unknown section; expected one of {}",
-                    SECTIONS.join(", ")
-                ),
+                format!("unknown section; expected one of {}", SECTIONS.join(", ")),
             ),
         }
     }
@@ -443,7 +446,10 @@ fn parse_devices<'i>(diag: &mut Diagnostics<'i>, root: &Node<'i>) -> Option<Vec<
         let driver = match diag::get(item, "driver") {
             Some(node) => parse_driver(diag, &format!("{path}.driver"), node),
             None => {
-                diag.error(&format!("{path}.driver"), "missing: [device.driver] with kind = \"…\"");
+                diag.error(
+                    &format!("{path}.driver"),
+                    "missing: [device.driver] with kind = \"…\"",
+                );
                 None
             }
         };
@@ -460,7 +466,11 @@ fn parse_devices<'i>(diag: &mut Diagnostics<'i>, root: &Node<'i>) -> Option<Vec<
     ok.then_some(devices)
 }
 
-fn parse_driver<'i>(diag: &mut Diagnostics<'i>, path: &str, node: &Node<'i>) -> Option<DeviceDriver> {
+fn parse_driver<'i>(
+    diag: &mut Diagnostics<'i>,
+    path: &str,
+    node: &Node<'i>,
+) -> Option<DeviceDriver> {
     let kinds = crate::devices::kind_names().join(", ");
     let Some(kind) = diag::get(node, "kind").and_then(diag::string) else {
         diag.error(&format!("{path}.kind"), format!("missing: one of {kinds}"));

@@ -101,7 +101,6 @@ pub struct StateConfig {
     pub capture_dir: Option<PathBuf>,
 }
 
-
 impl PoseOutputConfig {
     pub(crate) fn check(&self, c: &mut Checks<'_, '_>) {
         if let Some(addr) = &self.tcp {
@@ -120,7 +119,10 @@ impl LogConfig {
         if tracing_subscriber_filter_is_invalid(&self.level) {
             c.error(
                 "level",
-                format!("{:?} is not a log level (error, warn, info, debug, trace) or filter directive", self.level),
+                format!(
+                    "{:?} is not a log level (error, warn, info, debug, trace) or filter directive",
+                    self.level
+                ),
             );
         }
     }

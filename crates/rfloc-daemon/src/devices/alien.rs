@@ -55,7 +55,12 @@ impl Driver for Alien {
     type Settings = AlienSettings;
 
     fn check(settings: &AlienSettings, c: &mut Checks<'_, '_>, env: &CheckEnv<'_>) {
-        c.count("reads_per_snapshot", u64::from(settings.reads_per_snapshot), 1, 100);
+        c.count(
+            "reads_per_snapshot",
+            u64::from(settings.reads_per_snapshot),
+            1,
+            100,
+        );
         if settings.username.is_empty() || settings.username.contains(['\r', '\n']) {
             c.error("username", "must be one non-empty line");
         }

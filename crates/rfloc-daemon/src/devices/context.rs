@@ -255,7 +255,7 @@ impl DeviceContext {
                 let (io, _handle) = Replayer::new(capture)
                     .mode(*mode)
                     .reads_only_clock(true)
-                    .skip_unknown_requests(true)
+                    .skip_unknown_requests(self.device.driver.replay_skips_unknown())
                     .with_clock(Arc::clone(&self.stamp))
                     .start();
                 Ok(Box::new(io))

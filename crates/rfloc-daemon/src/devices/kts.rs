@@ -48,7 +48,8 @@ impl Driver for Kts {
 
     fn check(settings: &KtsSettings, c: &mut Checks<'_, '_>, _env: &CheckEnv<'_>) {
         c.range("resync_after_s", settings.resync_after_s, 0.1, 3600.0, " s");
-        if !settings.scan_command.starts_with("AT") || settings.scan_command.contains(['\r', '\n']) {
+        if !settings.scan_command.starts_with("AT") || settings.scan_command.contains(['\r', '\n'])
+        {
             c.error(
                 "scan_command",
                 format!("{:?} is not one AT command line", settings.scan_command),

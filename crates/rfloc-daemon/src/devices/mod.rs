@@ -72,6 +72,13 @@ pub trait Driver: Send + Sync + 'static {
     fn replay_mode(_settings: &Self::Settings) -> ReplayMode {
         ReplayMode::Stream
     }
+    /// In a request/response replay, whether a request the recording does not hold next is
+    /// looked for further on and otherwise left unanswered (a driver newer than the recording,
+    /// with fixed requests), rather than answered with the next recorded reply (requests that
+    /// carry the time or a counter).
+    fn replay_skips_unknown(_settings: &Self::Settings) -> bool {
+        false
+    }
     /// Settings to replay a capture of `capture` (its header's device) with no robot file.
     fn for_capture(capture: &str) -> Option<Self::Settings>;
     /// Whether the device carries out this pipeline request.
@@ -92,7 +99,12 @@ pub trait DriverKind: Sync {
     /// Capture device names it replays.
     fn captures(&self) -> &'static [&'static str];
     /// Parses `[device.driver]` (without `kind`); errors go to `diag`.
-    fn parse<'i>(&self, path: &str, node: &Node<'i>, diag: &mut Diagnostics<'i>) -> Option<DeviceDriver>;
+    fn parse<'i>(
+        &self,
+        path: &str,
+        node: &Node<'i>,
+        diag: &mut Diagnostics<'i>,
+    ) -> Option<DeviceDriver>;
     /// A driver for a capture of `capture` with no robot file.
     fn for_capture(&self, capture: &str) -> Option<DeviceDriver>;
 }
@@ -114,7 +126,12 @@ impl<D: Driver> DriverKind for Kind<D> {
         D::CAPTURES
     }
 
-    fn parse<'i>(&self, path: &str, node: &Node<'i>, diag: &mut Diagnostics<'i>) -> Option<DeviceDriver> {
+    fn parse<'i>(
+        &self,
+        path: &str,
+        node: &Node<'i>,
+        diag: &mut Diagnostics<'i>,
+    ) -> Option<DeviceDriver> {
         let settings: D::Settings = diag.deserialize(path, node)?;
         Some(DeviceDriver::new::<D>(settings))
     }
@@ -174,6 +191,7 @@ trait AnyDriver: Send + Sync {
     fn capture_name(&self) -> &'static str;
     fn stale_after_s(&self) -> f64;
     fn replay_mode(&self) -> ReplayMode;
+    fn replay_skips_unknown(&self) -> bool;
     fn handles(&self, request: &Request) -> bool;
     fn provide(&self, resources: &Resources);
     fn run(&self, ctx: DeviceContext) -> BoxFuture<'static, ()>;
@@ -201,6 +219,9 @@ impl<D: Driver> AnyDriver for Bound<D> {
     }
     fn replay_mode(&self) -> ReplayMode {
         D::replay_mode(&self.0)
+    }
+    fn replay_skips_unknown(&self) -> bool {
+        D::replay_skips_unknown(&self.0)
     }
     fn handles(&self, request: &Request) -> bool {
         D::handles(&self.0, request)
@@ -267,6 +288,12 @@ impl DeviceDriver {
     #[must_use]
     pub fn replay_mode(&self) -> ReplayMode {
         self.inner.replay_mode()
+    }
+
+    /// Whether its replay skips requests the recording does not hold.
+    #[must_use]
+    pub fn replay_skips_unknown(&self) -> bool {
+        self.inner.replay_skips_unknown()
     }
 
     /// Whether it carries out `request`.

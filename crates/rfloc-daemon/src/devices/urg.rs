@@ -64,6 +64,12 @@ impl Driver for Urg {
         ReplayMode::RequestResponse
     }
 
+    fn replay_skips_unknown(_settings: &UrgSettings) -> bool {
+        // SCIP commands are fixed text: a recording made before the handshake (SCIP2.0, VV,
+        // PP) holds none of it, and the scans still line up.
+        true
+    }
+
     fn for_capture(_capture: &str) -> Option<UrgSettings> {
         Some(UrgSettings::default())
     }
@@ -88,11 +94,7 @@ fn client_config(settings: &UrgSettings) -> UrgConfig {
 
 /// A scan as beams seen from the robot's centre of rotation (the scanner `mount_offset_m`
 /// ahead of it); no echo reads as the sensor's full reach.
-pub fn scan_beams(
-    scan: &Scan,
-    geometry: &UrgGeometry,
-    mount_offset_m: f64,
-) -> Vec<ScanBeam> {
+pub fn scan_beams(scan: &Scan, geometry: &UrgGeometry, mount_offset_m: f64) -> Vec<ScanBeam> {
     let reach = f64::from(geometry.max_mm) / 1000.0;
     scan.beams(geometry)
         .map(|(angle, range)| {

@@ -122,7 +122,13 @@ impl Driver for Xbee {
         if !matches!(x.api_mode, 1 | 2) {
             c.error("api_mode", "must be 1 or 2");
         }
-        c.range("discovery_timeout_s", x.discovery_timeout_s, 0.1, 25.5, " s (NT)");
+        c.range(
+            "discovery_timeout_s",
+            x.discovery_timeout_s,
+            0.1,
+            25.5,
+            " s (NT)",
+        );
         if x.role == XbeeRole::EmitterReceiver {
             if x.antenna.is_none() {
                 c.error(
@@ -454,7 +460,10 @@ async fn serve_sweeps<T: AsyncRead + AsyncWrite + Unpin + Send>(
                 None => return false,
             },
         };
-        let Request::Sweep { heading_rad: heading } = request else {
+        let Request::Sweep {
+            heading_rad: heading,
+        } = request
+        else {
             continue;
         };
         ctx.mark(&sweep_start_mark(heading));

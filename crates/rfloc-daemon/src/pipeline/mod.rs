@@ -79,7 +79,9 @@ pub enum Request {
 pub fn build(config: &EstimatorConfig, env: PipelineEnv<'_>) -> Result<Box<dyn Pipeline>, String> {
     Ok(match config {
         EstimatorConfig::Odometry => Box::new(OdometryPipeline::default()),
-        EstimatorConfig::Hfgrid(s) => Box::new(HfGridPipeline::new(s, tag_grid(s, env.config_dir)?)),
+        EstimatorConfig::Hfgrid(s) => {
+            Box::new(HfGridPipeline::new(s, tag_grid(s, env.config_dir)?))
+        }
         EstimatorConfig::Snapshot(s) => Box::new(SnapshotPipeline::new(s, env.state_dir)),
         EstimatorConfig::Ekfslam(s) => Box::new(EkfSlamPipeline::new(s)?),
         EstimatorConfig::Emitter(s) => Box::new(EmitterPipeline::new(s)?),

@@ -28,7 +28,10 @@ struct TagFile {
 pub fn load_tag_map(path: &Path) -> Result<Vec<GridTag>, String> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| format!("cannot read tag map {}: {e}", path.display()))?;
-    let tags = if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv")) {
+    let tags = if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("csv"))
+    {
         let mut reader = csv::ReaderBuilder::new()
             .trim(csv::Trim::All)
             .comment(Some(b'#'))
@@ -53,7 +56,11 @@ pub fn load_tag_map(path: &Path) -> Result<Vec<GridTag>, String> {
             ));
         }
         if !(t.x.is_finite() && t.y.is_finite()) {
-            return Err(format!("{}: tag {} has no finite position", path.display(), t.uid));
+            return Err(format!(
+                "{}: tag {} has no finite position",
+                path.display(),
+                t.uid
+            ));
         }
     }
     if tags.is_empty() {
@@ -94,7 +101,11 @@ mod tests {
     fn csv_and_toml_tag_maps_give_the_same_grid() {
         let dir = tempfile::tempdir().unwrap();
         let csv = dir.path().join("tags.csv");
-        std::fs::write(&csv, "# floor A\nuid,x,y\nE00401503A5BD691, 0.1, 0.2\nE00401503A5BDAE4,0,0\n").unwrap();
+        std::fs::write(
+            &csv,
+            "# floor A\nuid,x,y\nE00401503A5BD691, 0.1, 0.2\nE00401503A5BDAE4,0,0\n",
+        )
+        .unwrap();
         let toml = dir.path().join("tags.toml");
         std::fs::write(
             &toml,

@@ -42,10 +42,10 @@ use tokio_util::sync::CancellationToken;
 
 use super::ekfslam::lockstep::{read_all, LockstepBase};
 use super::SimOptions;
+use crate::sim::{pty_link, trial_capture, EmulatorClock};
 use rfloc_daemon::config::{GridTag, HfGridSettings};
 use rfloc_daemon::events::DeviceEvent;
 use rfloc_daemon::pipeline::{HfGridPipeline, Pipeline};
-use crate::sim::{pty_link, trial_capture, EmulatorClock};
 
 /// Antenna offset behind the robot centre (seed 002: 10 cm).
 const ANTENNA_OFFSET_M: f64 = 0.10;

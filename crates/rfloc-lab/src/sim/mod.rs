@@ -28,9 +28,9 @@ use rfloc_xbee::{
 
 use rfloc_daemon::config::{AntennaSide, EstimatorConfig, RobotConfig, XbeeRole};
 use rfloc_daemon::devices::{aria::Aria, stepper::Stepper, urg::Urg, xbee::Xbee};
+use rfloc_daemon::events::{DeviceEvent, ScanBeam};
 use rfloc_daemon::pipeline::Request;
 use rfloc_daemon::simulation::{BoxFuture, Simulation, SimulationIo};
-use rfloc_daemon::events::{DeviceEvent, ScanBeam};
 
 mod config;
 pub(crate) mod walls;
@@ -290,11 +290,7 @@ pub async fn start(cfg: &mut RobotConfig) -> anyhow::Result<SimRuntime> {
         _ => 0.10,
     };
     // The base first: other emulators follow its true pose.
-    for device in cfg
-        .devices
-        .iter_mut()
-        .filter(|d| d.driver.kind() == "aria")
-    {
+    for device in cfg.devices.iter_mut().filter(|d| d.driver.kind() == "aria") {
         let (master, slave, link) = pty_link(9600)?;
         let emulator = match snapshot_world {
             Some(sc) => RobotEmulator::new(RobotEmulatorConfig {
@@ -342,11 +338,7 @@ pub async fn start(cfg: &mut RobotConfig) -> anyhow::Result<SimRuntime> {
         device.link = Some(link);
         runtime._slaves.push(slave);
     }
-    for device in cfg
-        .devices
-        .iter_mut()
-        .filter(|d| d.driver.kind() == "kts")
-    {
+    for device in cfg.devices.iter_mut().filter(|d| d.driver.kind() == "kts") {
         let (master, slave, link) = pty_link(115_200)?;
         let base = runtime.base.clone();
         // Antenna behind the robot centre (seed 002: 10 cm), following the true pose.
@@ -364,8 +356,13 @@ pub async fn start(cfg: &mut RobotConfig) -> anyhow::Result<SimRuntime> {
         device.link = Some(link);
         runtime._slaves.push(slave);
     }
-    let role_of = |d: &rfloc_daemon::config::DeviceConfig| d.driver.settings::<Xbee>().map(|x| x.role);
-    if cfg.devices.iter().any(|d| role_of(d) == Some(XbeeRole::EmitterReceiver)) {
+    let role_of =
+        |d: &rfloc_daemon::config::DeviceConfig| d.driver.settings::<Xbee>().map(|x| x.role);
+    if cfg
+        .devices
+        .iter()
+        .any(|d| role_of(d) == Some(XbeeRole::EmitterReceiver))
+    {
         let scenario = scenario
             .as_ref()
             .filter(|s| s.world.emitter.is_some())
@@ -424,11 +421,7 @@ pub async fn start(cfg: &mut RobotConfig) -> anyhow::Result<SimRuntime> {
         tracing::info!(device = %device.name, link = %link.describe(), "emulated Alien reader on loopback TCP");
         device.link = Some(link);
     }
-    for device in cfg
-        .devices
-        .iter_mut()
-        .filter(|d| d.driver.kind() == "urg")
-    {
+    for device in cfg.devices.iter_mut().filter(|d| d.driver.kind() == "urg") {
         let Some(settings) = device.driver.settings::<Urg>().cloned() else {
             continue;
         };
@@ -714,7 +707,11 @@ impl SimRuntime {
 }
 
 /// Drives the base through the configured motion script (in simulated time).
-fn drive(config: &SimulationConfig, base: tokio::sync::mpsc::Sender<Request>, stop: CancellationToken) {
+fn drive(
+    config: &SimulationConfig,
+    base: tokio::sync::mpsc::Sender<Request>,
+    stop: CancellationToken,
+) {
     let scale = config.time_scale.max(1e-6);
     let motion = config.motion.clone();
     tokio::spawn(async move {

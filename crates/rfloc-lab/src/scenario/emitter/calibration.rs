@@ -69,7 +69,8 @@ mod tests {
         let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
         let path = root.join("config/sim-emitter.toml");
         let text = std::fs::read_to_string(&path).unwrap();
-        let cfg = rfloc_daemon::config::RobotConfig::parse(&text, "sim-emitter.toml", None).unwrap();
+        let cfg =
+            rfloc_daemon::config::RobotConfig::parse(&text, "sim-emitter.toml", None).unwrap();
         let rfloc_daemon::config::EstimatorConfig::Emitter(e) = &cfg.estimator else {
             panic!("not an emitter pipeline");
         };

@@ -31,13 +31,13 @@ use rfloc_transport::{CaptureSink, LinkConfig, Recorder, SharedClock};
 use rfloc_urg::{UrgClient, UrgConfig};
 
 use super::calibration::calibrate;
+use crate::scenario::lockstep::{driver_config, LockstepBase};
+use crate::sim::walls::wall_hook;
+use crate::sim::{trial_capture, EmulatorClock};
 use rfloc_daemon::config::AntennaSide;
 use rfloc_daemon::events::DeviceEvent;
 use rfloc_daemon::pipeline::emitter::{EmitterPipeline, HomingConfig};
 use rfloc_daemon::pipeline::{Pipeline, Request};
-use crate::scenario::lockstep::{driver_config, LockstepBase};
-use crate::sim::walls::wall_hook;
-use crate::sim::{trial_capture, EmulatorClock};
 
 /// Emulator ticks (SIP periods of 0.1 s) per control step: 5 Hz control, sensing and filtering.
 pub const CONTROL_TICKS: u64 = 2;

@@ -306,8 +306,10 @@ impl SnapshotRig {
             ));
         }
         // Framed for replays as the daemon's reader task frames its snapshots.
-        self.reader_sink
-            .event(&format!("mark {}", rfloc_daemon::devices::alien::snapshot_mark(reads.len())));
+        self.reader_sink.event(&format!(
+            "mark {}",
+            rfloc_daemon::devices::alien::snapshot_mark(reads.len())
+        ));
         Ok(Snapshot::average(&reads, &self.average))
     }
 
