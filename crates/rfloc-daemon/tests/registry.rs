@@ -43,14 +43,15 @@ fn every_kind_parses_and_validates_from_a_robot_file() {
         .unwrap_or_else(|e| panic!("{}: {e}", k.kind()));
         assert_eq!(cfg.devices[0].driver.kind(), k.kind());
         // An unknown key is an error at its own line, whatever the kind.
-        let bad = text.replace(
+        let bad = text.replacen(
             &format!("kind = \"{}\"\n", k.kind()),
             &format!("kind = \"{}\"\nno_such_key = 1\n", k.kind()),
+            1,
         );
         let e = RobotConfig::parse(&bad, "r.toml", None).unwrap_err();
         assert!(
             e.to_string()
-                .contains("r.toml:10:1: key `device[0].driver.no_such_key`"),
+                .contains("r.toml:9:1: key `device[0].driver.no_such_key`"),
             "{}: {e}",
             k.kind()
         );
