@@ -51,7 +51,18 @@ const REQUEST_QUEUE: usize = 16;
 pub async fn run(
     cfg: RobotConfig,
     opts: RunOptions,
+    sim: Option<Box<dyn Simulation>>,
+) -> anyhow::Result<()> {
+    run_with_pipeline(cfg, opts, sim, None).await
+}
+
+/// [`run`] with a pipeline of the caller's instead of the one the robot file names (an
+/// estimator under development, or a test's).
+pub async fn run_with_pipeline(
+    cfg: RobotConfig,
+    opts: RunOptions,
     mut sim: Option<Box<dyn Simulation>>,
+    pipeline: Option<Box<dyn pipeline::Pipeline>>,
 ) -> anyhow::Result<()> {
     let stop = CancellationToken::new();
     spawn_signal_handler(stop.clone());
@@ -64,6 +75,19 @@ pub async fn run(
             .with_context(|| format!("creating capture folder {}", dir.display()))?;
     }
     let config_dir = cfg.source.dir.clone();
+
+    // The pipeline first: a robot that cannot estimate does not start its devices.
+    let pipeline = match pipeline {
+        Some(p) => p,
+        None => pipeline::build(
+            &cfg.estimator,
+            PipelineEnv {
+                state_dir: cfg.state.dir.as_deref(),
+                config_dir: cfg.source.dir.as_deref(),
+            },
+        )
+        .map_err(|e| anyhow::anyhow!("pipeline {}: {e}", cfg.estimator.name()))?,
+    };
 
     // The run clock and its origin: simulated seconds in a simulation, monotonic time on a robot.
     let clock: SharedClock = sim
@@ -156,14 +180,6 @@ pub async fn run(
     drop(ev_tx);
 
     // The estimator thread.
-    let pipeline = pipeline::build(
-        &cfg.estimator,
-        PipelineEnv {
-            state_dir: cfg.state.dir.as_deref(),
-            config_dir: config_dir.as_deref(),
-        },
-    )
-    .map_err(|e| anyhow::anyhow!("pipeline {}: {e}", cfg.estimator.name()))?;
     let order_log = match &capture_dir {
         Some(dir) => {
             Some(estimator::create_order_log(dir).context("creating the pipeline order log")?)
@@ -228,13 +244,28 @@ pub async fn run(
             tracing::warn!(device = %name, "device task did not stop within 5 s");
         }
     }
-    // The estimator sees the end of its input, then stops.
-    router.flush_backlog_blocking();
-    let _ = thread.tx.send(Input::End);
+    // The estimator sees the end of its input, then stops; one that hangs is left behind.
+    router.flush_backlog(Duration::from_secs(2)).await;
+    let mut end = Some(Input::End);
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(2);
+    while let Some(input) = end.take() {
+        match thread.tx.try_send(input) {
+            Err(std::sync::mpsc::TrySendError::Full(input))
+                if tokio::time::Instant::now() < deadline =>
+            {
+                end = Some(input);
+                tokio::time::sleep(Duration::from_millis(5)).await;
+            }
+            Err(_) => tracing::error!("the estimator is not taking input; stopping without it"),
+            Ok(()) => {}
+        }
+    }
     drop(router);
-    let joined = tokio::task::spawn_blocking(move || thread.handle.join()).await;
-    if !matches!(joined, Ok(Ok(()))) {
-        tracing::error!("the estimator thread ended abnormally");
+    let join = tokio::task::spawn_blocking(move || thread.handle.join());
+    match tokio::time::timeout(Duration::from_secs(5), join).await {
+        Ok(Ok(Ok(()))) => {}
+        Ok(_) => tracing::error!("the estimator thread ended abnormally"),
+        Err(_) => tracing::error!("the estimator thread did not stop within 5 s"),
     }
     if let Some(sim) = sim {
         sim.shutdown().await;
@@ -359,13 +390,21 @@ impl Router {
         }
     }
 
-    /// Hands the whole backlog to the estimator, waiting for room (at shutdown).
-    fn flush_backlog_blocking(&mut self) {
-        while let Some(e) = self.backlog.pop_front() {
-            if self.thread_tx.send(Input::Event(e)).is_err() {
-                break;
+    /// Hands the backlog to the estimator at shutdown, waiting for room at most `limit`.
+    async fn flush_backlog(&mut self, limit: Duration) {
+        let deadline = tokio::time::Instant::now() + limit;
+        while !self.backlog.is_empty() && tokio::time::Instant::now() < deadline {
+            self.drain_backlog();
+            if !self.backlog.is_empty() {
+                tokio::time::sleep(Duration::from_millis(5)).await;
             }
-            self.progress.queued.fetch_add(1, Ordering::AcqRel);
+        }
+        if !self.backlog.is_empty() {
+            tracing::error!(
+                left = self.backlog.len(),
+                "estimator behind at shutdown: observations not processed"
+            );
+            self.backlog.clear();
         }
     }
 
