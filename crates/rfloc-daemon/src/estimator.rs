@@ -19,7 +19,7 @@ use std::sync::mpsc::{Receiver, SyncSender};
 use std::sync::Arc;
 use std::thread::JoinHandle;
 
-use rfloc_pose::{EstimateMode, PoseEstimate};
+use rfloc_pose::EstimateMode;
 use tokio::sync::mpsc;
 
 use crate::events::DeviceEvent;
@@ -58,7 +58,7 @@ pub struct Outputs {
     /// Record the consumption order into this file.
     pub order_log: Option<std::fs::File>,
     /// Scores estimates against a simulation's truth.
-    pub scorer: Option<Box<dyn FnMut(&PoseEstimate) + Send>>,
+    pub scorer: Option<crate::simulation::Scorer>,
     /// Told after each input is consumed (replay steps in lock with the thread).
     pub ack: Option<mpsc::UnboundedSender<u64>>,
 }

@@ -15,6 +15,9 @@ use crate::devices::AntennaSource;
 use crate::events::DeviceEvent;
 use crate::pipeline::Request;
 
+/// Scores published estimates against a simulation's truth (runs on the estimator thread).
+pub type Scorer = Box<dyn FnMut(&PoseEstimate) + Send>;
+
 /// A boxed future, for trait methods.
 pub type BoxFuture<'a, T> = Pin<Box<dyn Future<Output = T> + Send + 'a>>;
 
@@ -45,7 +48,7 @@ pub trait Simulation: Send {
     /// Starts what runs beside the devices (a motion script, an in-process sensor).
     fn started(&mut self, io: SimulationIo<'_>);
     /// Scores published estimates against the truth (called on the estimator thread).
-    fn scorer(&self) -> Option<Box<dyn FnMut(&PoseEstimate) + Send>>;
+    fn scorer(&self) -> Option<Scorer>;
     /// Stops the emulators and reports.
     fn shutdown(self: Box<Self>) -> BoxFuture<'static, ()>;
 }

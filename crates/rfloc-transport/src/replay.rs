@@ -178,7 +178,7 @@ impl Replayer {
             _ => None,
         });
         let rx_total = rx_total.sum();
-        let clock = self.clock.unwrap_or_else(ManualClock::new);
+        let clock = self.clock.unwrap_or_default();
         let (progress_tx, progress_rx) = watch::channel(ReplayReport {
             rx_bytes_total: rx_total,
             ..ReplayReport::default()
@@ -335,7 +335,8 @@ impl ReplayState {
         let request = self.report.requests;
         self.report.requests += 1;
         if !exact && self.skip_unknown {
-            return Ok(self.skip_to(actual, expected, t, request));
+            self.skip_to(actual, expected, t, request);
+            return Ok(());
         }
         if self.tx_cursor < self.records.len() {
             self.tx_cursor = next_tx(&self.records, self.tx_cursor + 1);

@@ -335,13 +335,13 @@ fn check_link(
                 d.name
             ),
         ),
-        Some(LinkConfig::Serial(s)) if env.check_files && !env.simulated => {
-            if !Path::new(&s.path).exists() {
-                c.error(
-                    "link.path",
-                    format!("serial device {} does not exist", s.path),
-                );
-            }
+        Some(LinkConfig::Serial(s))
+            if env.check_files && !env.simulated && !Path::new(&s.path).exists() =>
+        {
+            c.error(
+                "link.path",
+                format!("serial device {} does not exist", s.path),
+            );
         }
         Some(LinkConfig::Tcp(t)) if !t.address.contains(':') => {
             c.error("link.address", format!("{:?} is not host:port", t.address))

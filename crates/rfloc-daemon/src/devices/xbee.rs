@@ -350,7 +350,7 @@ fn scan_config(ctx: &DeviceContext) -> ScanConfig {
         .scan
         .lock()
         .ok()
-        .and_then(|s| s.clone())
+        .and_then(|s| *s)
         .unwrap_or_default()
 }
 
@@ -410,7 +410,7 @@ async fn run(ctx: DeviceContext, settings: XbeeSettings) {
                 .await;
             return;
         };
-        let mut runner = match ScanRunner::new(antenna, NdRssiProbe::new(client), scan.clone()) {
+        let mut runner = match ScanRunner::new(antenna, NdRssiProbe::new(client), scan) {
             Ok(r) => r,
             Err(e) => {
                 ctx.status(DeviceState::Closed, format!("sweep plan: {e}"))

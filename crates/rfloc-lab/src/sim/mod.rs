@@ -779,7 +779,7 @@ impl Simulation for SimRuntime {
         }
     }
 
-    fn scorer(&self) -> Option<Box<dyn FnMut(&rfloc_pose::PoseEstimate) + Send>> {
+    fn scorer(&self) -> Option<rfloc_daemon::simulation::Scorer> {
         let base = self.base.clone()?;
         let scores = Arc::clone(&self.scores);
         let start = self.start;
