@@ -174,23 +174,30 @@ fn embedded() -> Result<RobotConfig, ExitCode> {
 }
 
 /// Runs the daemon, with the lab's emulators when the robot file asks for a simulation.
+#[cfg(feature = "lab")]
 async fn run_daemon(
     mut cfg: RobotConfig,
     opts: rfloc_daemon::daemon::RunOptions,
 ) -> anyhow::Result<()> {
     let sim: Option<Box<dyn rfloc_daemon::simulation::Simulation>> = if cfg.simulation {
-        #[cfg(feature = "lab")]
-        {
-            Some(Box::new(rfloc_lab::sim::start(&mut cfg).await?))
-        }
-        #[cfg(not(feature = "lab"))]
-        {
-            anyhow::bail!("this build has no simulator (cargo feature `lab`)")
-        }
+        Some(Box::new(rfloc_lab::sim::start(&mut cfg).await?))
     } else {
         None
     };
     rfloc_daemon::daemon::run(cfg, opts, sim).await
+}
+
+/// Runs the daemon (this build has no simulator; `validate` refuses `[simulation]`).
+#[cfg(not(feature = "lab"))]
+async fn run_daemon(
+    cfg: RobotConfig,
+    opts: rfloc_daemon::daemon::RunOptions,
+) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        !cfg.simulation,
+        "this build has no simulator (cargo feature `lab`)"
+    );
+    rfloc_daemon::daemon::run(cfg, opts, None).await
 }
 
 fn main() -> ExitCode {
