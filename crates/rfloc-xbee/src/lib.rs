@@ -1,5 +1,5 @@
 //! XBee API-mode driver: a sans-IO frame codec for AP=1 and AP=2, typed frames, `ND` (node
-//! discovery) records, an async client over any byte stream, an [`RssiProbe`] trait for the
+//! discovery) records, an async client over any byte stream, a [`BeaconRadio`] capability trait for the
 //! bearing scan, and a coordinator emulator that serves the same protocol.
 //!
 //! Layers, bottom up:
@@ -12,7 +12,7 @@
 //! ```
 //! use std::sync::Arc;
 //! use rfloc_xbee::{
-//!     ApiMode, Beacon, ClientConfig, CoordinatorEmulator, EmulatorConfig, RssiFn, RssiProbe,
+//!     ApiMode, Beacon, ClientConfig, CoordinatorEmulator, EmulatorConfig, RssiFn, BeaconRadio,
 //!     XBeeClient,
 //! };
 //!
@@ -68,4 +68,4 @@ pub use frame::{
     TransmitRequest, TransmitStatus,
 };
 pub use nd::{rssi_byte_to_dbm, DeviceType, NdError, NdLayout, NdLayoutHint, Node};
-pub use probe::RssiProbe;
+pub use probe::BeaconRadio;

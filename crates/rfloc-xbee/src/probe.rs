@@ -1,4 +1,6 @@
-//! What a bearing scan needs from a radio, as a trait so it can be mocked.
+//! The radio capability a host program needs for beacons: discover nodes and measure the RSSI
+//! of one, as a trait so it can be mocked. (A bearing sweep takes `rfloc_bearing::RssiProbe`, one
+//! round of `(beacon, RSSI)` per antenna stop; the daemon implements it over `XBeeClient`.)
 
 use std::future::Future;
 
@@ -9,7 +11,7 @@ use crate::client::{XBeeClient, XBeeError};
 use crate::nd::Node;
 
 /// Discovers beacons and measures the RSSI of one of them.
-pub trait RssiProbe {
+pub trait BeaconRadio {
     /// Error of the implementation.
     type Error: std::error::Error + Send + Sync + 'static;
 
@@ -24,7 +26,7 @@ pub trait RssiProbe {
     ) -> impl Future<Output = Result<Option<f64>, Self::Error>> + Send;
 }
 
-impl<T> RssiProbe for XBeeClient<T>
+impl<T> BeaconRadio for XBeeClient<T>
 where
     T: AsyncRead + AsyncWrite + Unpin + Send,
 {

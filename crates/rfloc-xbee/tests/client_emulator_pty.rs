@@ -7,8 +7,8 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use rfloc_xbee::{
-    Address64, ApiMode, AtCommandName, AtStatus, Beacon, ClientConfig, CoordinatorEmulator,
-    DiscoveryEnd, EmulatorConfig, NdLayout, NdLayoutHint, RssiFn, RssiProbe, RssiSource,
+    Address64, ApiMode, AtCommandName, AtStatus, Beacon, BeaconRadio, ClientConfig,
+    CoordinatorEmulator, DiscoveryEnd, EmulatorConfig, NdLayout, NdLayoutHint, RssiFn, RssiSource,
     XBeeClient,
 };
 use tokio_serial::SerialStream;
@@ -182,7 +182,7 @@ async fn frame_ids_wrap_past_255() {
 
 /// What a bearing scan does, written against the trait: the RSSI follows the antenna angle
 /// that the simulator's function reads.
-async fn scan<P: RssiProbe>(
+async fn scan<P: BeaconRadio>(
     probe: &mut P,
     angle: &AtomicUsize,
     steps: usize,
