@@ -136,6 +136,8 @@ pub async fn run_with_pipeline(
     let (ev_tx, ev_rx) = mpsc::channel::<DeviceEvent>(1024);
     let mut tasks: Vec<(String, JoinHandle<()>)> = Vec::new();
     let mut routes = Vec::new();
+    let health = Arc::new(Health::default());
+    let backoff = cfg.supervision.backoff();
     for device in &cfg.devices {
         let (cmd_tx, cmd_rx) = mpsc::channel(REQUEST_QUEUE);
         let ctx = DeviceContext::new(
@@ -152,8 +154,12 @@ pub async fn run_with_pipeline(
             time_scale,
             cmd_rx,
             Arc::clone(&resources),
-        );
-        tasks.push((device.name.clone(), device.driver.spawn(ctx)));
+        )
+        .with_backoff(backoff);
+        tasks.push((
+            device.name.clone(),
+            tokio::spawn(supervise(ctx, backoff, stop.clone(), Arc::clone(&health))),
+        ));
         routes.push(Route {
             device: device.name.clone(),
             driver: device.driver.clone(),
@@ -230,8 +236,10 @@ pub async fn run_with_pipeline(
         dropped: 0,
         stale: StaleWatch::new(&cfg, time_scale),
         last_consumed: (0, tokio::time::Instant::now()),
+        health,
+        max_down: Duration::from_secs_f64(cfg.supervision.max_down_s),
     };
-    router.run(ev_rx, &stop, deadline, &tasks).await;
+    router.run(ev_rx, &stop, deadline).await;
 
     notify::stopping();
     tracing::info!("stopping: halting the robot and closing devices");
@@ -288,6 +296,10 @@ struct Router {
     stale: StaleWatch,
     /// Inputs the estimator had consumed at the last check, and when that count last moved.
     last_consumed: (u64, tokio::time::Instant),
+    /// Device tasks that are down, from their supervisors.
+    health: Arc<Health>,
+    /// A device down longer than this stops the watchdog.
+    max_down: Duration,
 }
 
 impl Router {
@@ -296,7 +308,6 @@ impl Router {
         mut ev_rx: mpsc::Receiver<DeviceEvent>,
         stop: &CancellationToken,
         deadline: Option<tokio::time::Instant>,
-        tasks: &[(String, JoinHandle<()>)],
     ) {
         let watchdog = notify::watchdog_period().unwrap_or(Duration::from_secs(1));
         let mut tick = tokio::time::interval(watchdog.min(Duration::from_millis(500)));
@@ -314,7 +325,7 @@ impl Router {
                         tracing::warn!(device = %name, "device silent");
                         self.hub.publish_device(&name, message::device_json(&name, driver, DeviceState::Stale, &format!("silent for more than {limit:.1} s"), SystemTime::now()));
                     }
-                    if self.healthy(tasks, watchdog) {
+                    if self.healthy(watchdog) {
                         notify::watchdog();
                     }
                 }
@@ -340,9 +351,12 @@ impl Router {
                 device,
                 message::device_json(device, driver, *state, detail, SystemTime::now()),
             );
-            self.stale.status(device, *state);
+            if *state == DeviceState::Connected {
+                self.health.up(device);
+            }
             return;
         }
+        self.health.up(event.device());
         if self.stale.seen(event.device()) {
             let name = event.device().to_string();
             let driver = self.stale.driver(&name);
@@ -408,9 +422,10 @@ impl Router {
         }
     }
 
-    /// The watchdog is fed only while every device task is alive and the estimator keeps
-    /// consuming (or has nothing to consume).
-    fn healthy(&mut self, tasks: &[(String, JoinHandle<()>)], watchdog: Duration) -> bool {
+    /// The watchdog is fed only while the estimator keeps consuming (or has nothing to consume)
+    /// and no device has been down (task ended, or silent past its `stale_after_s`) longer than
+    /// `max_down_s`.
+    fn healthy(&mut self, watchdog: Duration) -> bool {
         let now = tokio::time::Instant::now();
         let consumed = self.progress.consumed.load(Ordering::Acquire);
         if consumed != self.last_consumed.0 {
@@ -418,21 +433,103 @@ impl Router {
         }
         let waiting = self.progress.backlog() > 0 || !self.backlog.is_empty();
         let estimator_ok = !waiting || now.duration_since(self.last_consumed.1) < watchdog;
-        let dead: Vec<&str> = tasks
-            .iter()
-            .filter(|(_, t)| t.is_finished())
-            .map(|(n, _)| n.as_str())
-            .collect();
         if !estimator_ok {
             tracing::error!(
                 backlog = self.progress.backlog(),
                 "estimator not consuming: watchdog not fed"
             );
         }
-        if !dead.is_empty() {
-            tracing::error!(devices = ?dead, "device task ended: watchdog not fed");
+        let mut down = self.health.down_longer_than(self.max_down, now);
+        down.extend(self.stale.silent_longer_than(self.max_down, now));
+        if !down.is_empty() {
+            tracing::error!(devices = ?down, limit_s = self.max_down.as_secs_f64(), "device down too long: watchdog not fed");
         }
-        estimator_ok && dead.is_empty()
+        estimator_ok && down.is_empty()
+    }
+}
+
+/// Which device tasks are down, and since when: down from a task's end (its supervisor), up
+/// again only once the restarted device delivers or connects (the router), so a crash loop
+/// counts as down.
+#[derive(Debug, Default)]
+struct Health {
+    down_since: std::sync::Mutex<HashMap<String, tokio::time::Instant>>,
+}
+
+impl Health {
+    fn up(&self, name: &str) {
+        if let Ok(mut d) = self.down_since.lock() {
+            d.remove(name);
+        }
+    }
+
+    fn down(&self, name: &str) {
+        if let Ok(mut d) = self.down_since.lock() {
+            d.entry(name.to_string())
+                .or_insert_with(tokio::time::Instant::now);
+        }
+    }
+
+    fn down_longer_than(&self, limit: Duration, now: tokio::time::Instant) -> Vec<String> {
+        self.down_since.lock().map_or_else(
+            |_| Vec::new(),
+            |d| {
+                d.iter()
+                    .filter(|(_, since)| now.duration_since(**since) > limit)
+                    .map(|(n, _)| n.clone())
+                    .collect()
+            },
+        )
+    }
+}
+
+/// Runs a device's task and restarts it with back-off whenever it ends or panics (until the
+/// daemon stops), reporting each as DEVICE `failed`.
+async fn supervise(
+    ctx: DeviceContext,
+    backoff: crate::devices::Backoff,
+    stop: CancellationToken,
+    health: Arc<Health>,
+) {
+    let name = ctx.device.name.clone();
+    let seed = crate::devices::seed_of(&name);
+    let mut restarts = 0u32;
+    loop {
+        let started = tokio::time::Instant::now();
+        let result = ctx.device.driver.spawn(ctx.clone()).await;
+        if stop.is_cancelled() {
+            return;
+        }
+        health.down(&name);
+        let why = match result {
+            Ok(()) => "device task ended".to_string(),
+            Err(e) if e.is_panic() => {
+                let payload = e.into_panic();
+                let text = payload
+                    .downcast_ref::<&str>()
+                    .map(|s| (*s).to_string())
+                    .or_else(|| payload.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "unknown panic".into());
+                format!("device task panicked: {text}")
+            }
+            Err(e) => format!("device task stopped: {e}"),
+        };
+        // A task that ran well for a while starts its back-off afresh.
+        if started.elapsed() > Duration::from_secs_f64(backoff.max_s) {
+            restarts = 0;
+        }
+        let wait = backoff.delay(restarts, seed);
+        tracing::error!(device = %name, reason = %why, restart_in_s = wait.as_secs_f64(), "device task stopped; restarting after back-off");
+        ctx.status(
+            DeviceState::Failed,
+            format!("{why}; restarting in {:.1} s", wait.as_secs_f64()),
+        )
+        .await;
+        tokio::select! {
+            () = stop.cancelled() => return,
+            () = tokio::time::sleep(wait) => {}
+        }
+        restarts = restarts.saturating_add(1);
     }
 }
 
@@ -446,10 +543,19 @@ struct StaleWatch {
 
 impl StaleWatch {
     fn new(cfg: &RobotConfig, time_scale: f64) -> Self {
+        let start = tokio::time::Instant::now();
         Self {
+            // Staleness counts from the start: a device that never delivers goes stale too.
+            last_seen: cfg
+                .devices
+                .iter()
+                .filter(|d| d.driver.observes())
+                .map(|d| (d.name.clone(), start))
+                .collect(),
             limits: cfg
                 .devices
                 .iter()
+                .filter(|d| d.driver.observes())
                 .map(|d| {
                     (
                         d.name.clone(),
@@ -460,9 +566,21 @@ impl StaleWatch {
                     )
                 })
                 .collect(),
-            last_seen: HashMap::new(),
             stale: HashMap::new(),
         }
+    }
+
+    /// Devices silent for longer than their limit plus `grace`.
+    fn silent_longer_than(&self, grace: Duration, now: tokio::time::Instant) -> Vec<String> {
+        self.limits
+            .iter()
+            .filter(|(name, (limit, _))| {
+                self.last_seen
+                    .get(*name)
+                    .is_some_and(|t| now.duration_since(*t) > *limit + grace)
+            })
+            .map(|(name, _)| name.clone())
+            .collect()
     }
 
     fn driver(&self, name: &str) -> &'static str {
@@ -475,8 +593,6 @@ impl StaleWatch {
             .insert(name.to_string(), tokio::time::Instant::now());
         self.stale.insert(name.to_string(), false) == Some(true)
     }
-
-    fn status(&mut self, _name: &str, _state: DeviceState) {}
 
     /// Devices that just became stale: (name, driver, limit in seconds).
     fn check(&mut self) -> Vec<(String, &'static str, f64)> {

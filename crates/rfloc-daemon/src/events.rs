@@ -157,6 +157,8 @@ pub enum DeviceState {
     Stale,
     Reconnecting,
     Closed,
+    /// The device task ended or panicked; the daemon restarts it after a back-off.
+    Failed,
 }
 
 impl DeviceState {
@@ -168,6 +170,7 @@ impl DeviceState {
             DeviceState::Stale => "stale",
             DeviceState::Reconnecting => "reconnecting",
             DeviceState::Closed => "closed",
+            DeviceState::Failed => "failed",
         }
     }
 }

@@ -242,6 +242,16 @@ impl KtsClient {
     }
 }
 
+impl KtsClient {
+    /// Ends the client task and waits until it (and the link it owns) is gone, so that a caller
+    /// backing off before a reconnect does not hold the old link open meanwhile.
+    pub async fn close(mut self) {
+        self.task.abort();
+        let task = std::mem::replace(&mut self.task, tokio::spawn(async {}));
+        let _ = task.await;
+    }
+}
+
 impl Drop for KtsClient {
     fn drop(&mut self) {
         self.task.abort();

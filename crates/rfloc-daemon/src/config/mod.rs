@@ -29,7 +29,7 @@ pub use estimator::{
     EkfSlamSettings, EmitterSettings, EstimatorConfig, GridTag, HfGridSettings, SnapshotSettings,
     WheelSlipSettings, PIPELINES,
 };
-pub use sections::{LogConfig, PoseOutputConfig, RobotSection, StateConfig};
+pub use sections::{LogConfig, PoseOutputConfig, RobotSection, StateConfig, SupervisionConfig};
 
 pub use crate::devices::alien::AlienSettings;
 pub use crate::devices::aria::AriaSettings;
@@ -50,6 +50,7 @@ pub struct RobotConfig {
     pub pose: PoseOutputConfig,
     pub log: LogConfig,
     pub state: StateConfig,
+    pub supervision: SupervisionConfig,
     /// Present in simulation configs: devices are emulated (by the lab) on ptys and loopback
     /// sockets. The daemon only knows that the section is there.
     pub simulation: bool,
@@ -118,7 +119,15 @@ impl Default for LoadOptions<'_> {
 }
 
 /// The sections the daemon itself reads.
-const SECTIONS: &[&str] = &["robot", "device", "estimator", "pose", "log", "state"];
+const SECTIONS: &[&str] = &[
+    "robot",
+    "device",
+    "estimator",
+    "pose",
+    "log",
+    "state",
+    "supervision",
+];
 
 impl RobotConfig {
     /// Reads, parses and checks a robot file.
@@ -198,6 +207,7 @@ struct Parts {
     pose: Option<PoseOutputConfig>,
     log: Option<LogConfig>,
     state: Option<StateConfig>,
+    supervision: Option<SupervisionConfig>,
     simulation: bool,
 }
 
@@ -243,6 +253,9 @@ impl Parts {
         if let Some(log) = &self.log {
             log.check(&mut Checks::new(diag, "log"));
         }
+        if let Some(s) = &self.supervision {
+            s.check(&mut Checks::new(diag, "supervision"));
+        }
     }
 
     fn assemble(self, text: &str, file: &str, dir: Option<&Path>) -> Option<RobotConfig> {
@@ -253,6 +266,7 @@ impl Parts {
             pose: self.pose?,
             log: self.log?,
             state: self.state?,
+            supervision: self.supervision?,
             simulation: self.simulation,
             source: Arc::new(ConfigSource {
                 file: file.to_string(),
@@ -359,6 +373,7 @@ fn parse_root<'i>(diag: &mut Diagnostics<'i>, dir: Option<&Path>, opts: &LoadOpt
         pose: None,
         log: None,
         state: None,
+        supervision: None,
         simulation: false,
     };
     let Some(table) = diag::table(root) else {
@@ -419,6 +434,10 @@ fn parse_root<'i>(diag: &mut Diagnostics<'i>, dir: Option<&Path>, opts: &LoadOpt
     let state = match diag::get(root, "state") {
         Some(n) => diag.deserialize::<StateConfig>("state", n),
         None => Some(StateConfig::default()),
+    };
+    parts.supervision = match diag::get(root, "supervision") {
+        Some(n) => diag.deserialize::<SupervisionConfig>("supervision", n),
+        None => Some(SupervisionConfig::default()),
     };
     parts.devices = parse_devices(diag, root);
     parts.robot = robot;

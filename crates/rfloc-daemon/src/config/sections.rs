@@ -132,3 +132,78 @@ impl LogConfig {
 fn tracing_subscriber_filter_is_invalid(level: &str) -> bool {
     level.trim().is_empty() || tracing_subscriber::EnvFilter::try_new(level).is_err()
 }
+
+/// `[supervision]`: how devices are reconnected and restarted, and when the daemon gives up on
+/// one (the systemd watchdog then restarts the service).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SupervisionConfig {
+    /// First wait before reconnecting a link or restarting a device task, seconds.
+    #[serde(default = "default_backoff_initial")]
+    pub backoff_initial_s: f64,
+    /// Longest such wait, seconds.
+    #[serde(default = "default_backoff_max")]
+    pub backoff_max_s: f64,
+    /// Spread of each wait, a fraction of it.
+    #[serde(default = "default_backoff_jitter")]
+    pub backoff_jitter: f64,
+    /// A device down longer than this (its task ended, or it delivered nothing past its
+    /// `stale_after_s`) stops the systemd watchdog, seconds.
+    #[serde(default = "default_max_down")]
+    pub max_down_s: f64,
+}
+
+fn default_backoff_initial() -> f64 {
+    0.5
+}
+
+fn default_backoff_max() -> f64 {
+    30.0
+}
+
+fn default_backoff_jitter() -> f64 {
+    0.2
+}
+
+fn default_max_down() -> f64 {
+    60.0
+}
+
+impl Default for SupervisionConfig {
+    fn default() -> Self {
+        Self {
+            backoff_initial_s: default_backoff_initial(),
+            backoff_max_s: default_backoff_max(),
+            backoff_jitter: default_backoff_jitter(),
+            max_down_s: default_max_down(),
+        }
+    }
+}
+
+impl SupervisionConfig {
+    pub(crate) fn check(&self, c: &mut Checks<'_, '_>) {
+        c.range(
+            "backoff_initial_s",
+            self.backoff_initial_s,
+            0.01,
+            3600.0,
+            " s",
+        );
+        c.range("backoff_max_s", self.backoff_max_s, 0.01, 86_400.0, " s");
+        if self.backoff_max_s < self.backoff_initial_s {
+            c.error("backoff_max_s", "must not be below backoff_initial_s");
+        }
+        c.range("backoff_jitter", self.backoff_jitter, 0.0, 0.9, "");
+        c.range("max_down_s", self.max_down_s, 1.0, 86_400.0, " s");
+    }
+
+    /// The back-off policy.
+    #[must_use]
+    pub fn backoff(&self) -> crate::devices::Backoff {
+        crate::devices::Backoff {
+            initial_s: self.backoff_initial_s,
+            max_s: self.backoff_max_s,
+            jitter: self.backoff_jitter,
+        }
+    }
+}

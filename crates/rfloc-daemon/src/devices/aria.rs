@@ -74,7 +74,7 @@ impl Driver for Aria {
 const ODOMETRY_QUEUE: usize = 256;
 
 async fn run(ctx: DeviceContext, settings: AriaSettings) {
-    let mut commands = ctx.take_commands();
+    let mut commands = ctx.commands().await;
     let mut attempt = 0u32;
     while !ctx.stop.is_cancelled() {
         ctx.status(DeviceState::Connecting, "handshake").await;
@@ -191,18 +191,10 @@ async fn run(ctx: DeviceContext, settings: AriaSettings) {
     }
 }
 
-/// The next pipeline request, or never when there is no request channel (or it closed).
-pub(crate) async fn next_command(
-    commands: &mut Option<tokio::sync::mpsc::Receiver<Request>>,
-) -> Option<Request> {
-    match commands {
-        Some(rx) => match rx.recv().await {
-            Some(r) => Some(r),
-            None => {
-                *commands = None;
-                std::future::pending().await
-            }
-        },
+/// The next pipeline request, or never once the request channel closed.
+pub(crate) async fn next_command(commands: &mut crate::devices::CommandQueue) -> Option<Request> {
+    match commands.recv().await {
+        Some(r) => Some(r),
         None => std::future::pending().await,
     }
 }

@@ -5,7 +5,6 @@
 use std::collections::VecDeque;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
 
 use anyhow::Context;
 use rfloc_capture::{Capture, Header};
@@ -86,9 +85,15 @@ pub struct DeviceContext {
     /// Simulated seconds per wall second (1 on a real robot and in a replay).
     pub time_scale: f64,
     links: Arc<LinkSource>,
-    commands: Arc<Mutex<Option<mpsc::Receiver<Request>>>>,
+    commands: Arc<tokio::sync::Mutex<mpsc::Receiver<Request>>>,
     pub resources: Arc<Resources>,
+    /// The wait before each reconnection.
+    pub backoff: crate::devices::Backoff,
 }
+
+/// A device task's queue of pipeline requests, held for the task's life (a restarted task gets
+/// it back).
+pub type CommandQueue = tokio::sync::OwnedMutexGuard<mpsc::Receiver<Request>>;
 
 impl DeviceContext {
     /// A context for `device`; `commands` carries the pipeline's requests the device handles.
@@ -114,8 +119,9 @@ impl DeviceContext {
             config_dir,
             time_scale,
             links: Arc::new(links),
-            commands: Arc::new(Mutex::new(Some(commands))),
+            commands: Arc::new(tokio::sync::Mutex::new(commands)),
             resources,
+            backoff: crate::devices::Backoff::default(),
         }
     }
 
@@ -149,10 +155,16 @@ impl DeviceContext {
         }
     }
 
-    /// The pipeline's requests for this device (once; later calls get `None`).
+    /// The pipeline's requests for this device, held until the task ends.
+    pub async fn commands(&self) -> CommandQueue {
+        Arc::clone(&self.commands).lock_owned().await
+    }
+
+    /// The same context with another back-off policy.
     #[must_use]
-    pub fn take_commands(&self) -> Option<mpsc::Receiver<Request>> {
-        self.commands.lock().ok().and_then(|mut c| c.take())
+    pub fn with_backoff(mut self, backoff: crate::devices::Backoff) -> Self {
+        self.backoff = backoff;
+        self
     }
 
     fn live_capture(&self) -> Option<CaptureSink> {
@@ -280,11 +292,4 @@ impl DeviceContext {
             })
             .await;
     }
-}
-
-/// Back-off for reconnecting: 0.5 s doubling to 30 s.
-#[must_use]
-pub fn backoff(attempt: u32) -> Duration {
-    let secs = 0.5 * 2f64.powi(i32::try_from(attempt.min(6)).unwrap_or(6));
-    Duration::from_secs_f64(secs.min(30.0))
 }

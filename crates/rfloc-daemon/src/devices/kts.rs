@@ -92,6 +92,9 @@ async fn run(ctx: DeviceContext, settings: KtsSettings) {
             return;
         };
         if let Err(e) = client.start_scan().await {
+            // The old link is closed before the back-off: a serial port stays locked while open.
+            drop(events);
+            client.close().await;
             if !retry_later(&ctx, &mut attempt, format!("start scan: {e}")).await {
                 return;
             }
@@ -118,6 +121,8 @@ async fn run(ctx: DeviceContext, settings: KtsSettings) {
         }
         let stats = client.stats();
         tracing::warn!(?stats, "HF reader link closed; reconnecting");
+        drop(events);
+        client.close().await;
         if !retry_later(&ctx, &mut attempt, "link closed").await {
             return;
         }

@@ -24,6 +24,7 @@ use crate::simulation::BoxFuture;
 
 pub mod alien;
 pub mod aria;
+mod backoff;
 mod context;
 pub mod kts;
 pub mod stepper;
@@ -31,7 +32,8 @@ pub mod urg;
 pub mod xbee;
 mod xbee_receiver;
 
-pub use context::{backoff, DeviceContext, LinkSource, Resources};
+pub use backoff::{seed_of, Backoff};
+pub use context::{CommandQueue, DeviceContext, LinkSource, Resources};
 pub use xbee::{swept_beacons, AntennaSource, NdRssiProbe, SweepMark};
 
 /// Where a robot file is checked: what may be looked at besides the file itself.
@@ -84,6 +86,11 @@ pub trait Driver: Send + Sync + 'static {
     /// Whether the device carries out this pipeline request.
     fn handles(_settings: &Self::Settings, _request: &Request) -> bool {
         false
+    }
+    /// Whether the device sends observations (a device that only lends something, such as the
+    /// antenna stepper, never does and is never stale).
+    fn observes(_settings: &Self::Settings) -> bool {
+        true
     }
     /// Offers what the device lends to others before any task starts.
     fn provide(_settings: &Self::Settings, _resources: &Resources) {}
@@ -194,6 +201,7 @@ trait AnyDriver: Send + Sync {
     fn replay_skips_unknown(&self) -> bool;
     fn handles(&self, request: &Request) -> bool;
     fn provide(&self, resources: &Resources);
+    fn observes(&self) -> bool;
     fn run(&self, ctx: DeviceContext) -> BoxFuture<'static, ()>;
     fn as_any(&self) -> &dyn Any;
     fn debug(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result;
@@ -228,6 +236,9 @@ impl<D: Driver> AnyDriver for Bound<D> {
     }
     fn provide(&self, resources: &Resources) {
         D::provide(&self.0, resources);
+    }
+    fn observes(&self) -> bool {
+        D::observes(&self.0)
     }
     fn run(&self, ctx: DeviceContext) -> BoxFuture<'static, ()> {
         D::run(self.0.clone(), ctx)
@@ -302,6 +313,12 @@ impl DeviceDriver {
         self.inner.handles(request)
     }
 
+    /// Whether it sends observations (and can be stale).
+    #[must_use]
+    pub fn observes(&self) -> bool {
+        self.inner.observes()
+    }
+
     /// Offers what it lends to others.
     pub fn provide(&self, resources: &Resources) {
         self.inner.provide(resources);
@@ -328,9 +345,10 @@ pub(crate) async fn retry_later(
         ctx.status(DeviceState::Closed, "end of recording").await;
         return false;
     }
-    tracing::warn!(attempt = *attempt, detail = %detail, "device not ready; retrying after back-off");
+    let wait = ctx.backoff.delay(*attempt, seed_of(ctx.name()));
+    tracing::warn!(attempt = *attempt, wait_s = wait.as_secs_f64(), detail = %detail, "device not ready; retrying after back-off");
     ctx.status(DeviceState::Reconnecting, detail).await;
-    let go_on = pause(ctx, backoff(*attempt)).await;
+    let go_on = pause(ctx, wait).await;
     *attempt += 1;
     go_on
 }

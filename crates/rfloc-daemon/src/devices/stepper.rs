@@ -63,6 +63,10 @@ impl Driver for Stepper {
         None
     }
 
+    fn observes(_s: &StepperSettings) -> bool {
+        false
+    }
+
     fn provide(s: &StepperSettings, resources: &Resources) {
         resources.offer_antenna(AntennaSource::Gpio(s.clone()));
     }

@@ -21,7 +21,6 @@ use rfloc_transport::replay::ReplayMode;
 use rfloc_xbee::{ClientConfig, NdLayoutHint, XBeeClient, XBeeError};
 use serde::Deserialize;
 use tokio::io::{AsyncRead, AsyncWrite};
-use tokio::sync::mpsc;
 
 use crate::config::Checks;
 use crate::devices::stepper::StepperSettings;
@@ -363,9 +362,7 @@ async fn run(ctx: DeviceContext, settings: XbeeSettings) {
         .await;
         return;
     };
-    let Some(mut requests) = ctx.take_commands() else {
-        return;
-    };
+    let mut requests = ctx.commands().await;
     let scan = scan_config(&ctx);
     let nt = Duration::from_secs_f64(settings.discovery_timeout_s);
     let mut source = Some(antenna);
@@ -450,7 +447,7 @@ async fn run(ctx: DeviceContext, settings: XbeeSettings) {
 async fn serve_sweeps<T: AsyncRead + AsyncWrite + Unpin + Send>(
     ctx: &DeviceContext,
     runner: &mut ScanRunner<Antenna, NdRssiProbe<T>>,
-    requests: &mut mpsc::Receiver<Request>,
+    requests: &mut crate::devices::CommandQueue,
 ) -> bool {
     loop {
         let request = tokio::select! {
