@@ -100,7 +100,24 @@ pub async fn run_with_pipeline(
     let time_scale = sim.as_ref().map_or(1.0, |s| s.time_scale());
 
     // Pose stream.
-    let hub = PoseHub::new(cfg.pose.client_queue);
+    let token = match &cfg.pose.token_file {
+        Some(p) => {
+            let path = crate::config::resolve_credential(p, config_dir.as_deref())
+                .with_context(|| format!("pose token file {} not found", p.display()))?;
+            Some(crate::server::read_token(&path).map_err(anyhow::Error::msg)?)
+        }
+        None => None,
+    };
+    let hub = PoseHub::new(cfg.pose.client_queue).with_access(crate::server::Access {
+        token,
+        allow: cfg
+            .pose
+            .allow
+            .iter()
+            .filter_map(|a| crate::server::AllowRule::parse(a))
+            .collect(),
+        max_clients: cfg.pose.max_clients,
+    });
     let mut servers = Vec::new();
     if let Some(addr) = &cfg.pose.tcp {
         let listener = tokio::net::TcpListener::bind(addr)
@@ -110,14 +127,10 @@ pub async fn run_with_pipeline(
         servers.push(tokio::spawn(hub.clone().serve_tcp(listener, stop.clone())));
     }
     if let Some(path) = &cfg.pose.unix {
-        let listener = bind_unix(path)
+        let socket = bind_unix(path)
             .with_context(|| format!("binding pose stream on {}", path.display()))?;
         tracing::info!(path = %path.display(), "pose stream (unix)");
-        servers.push(tokio::spawn(hub.clone().serve_unix(
-            listener,
-            path.clone(),
-            stop.clone(),
-        )));
+        servers.push(tokio::spawn(hub.clone().serve_unix(socket, stop.clone())));
     }
 
     // What devices lend each other: a simulation's rotator first, else the robot's stepper.

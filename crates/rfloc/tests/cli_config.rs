@@ -178,3 +178,29 @@ fn an_hf_robot_without_its_floor_tags_is_refused() {
     assert_eq!(code, 78, "{text}");
     assert!(text.contains("key `estimator.tag[0].uid`"), "{text}");
 }
+
+#[test]
+fn a_pose_stream_for_other_hosts_needs_access_control() {
+    let dir = tempfile::tempdir().unwrap();
+    let open = format!("{BASE}\n[pose]\ntcp = \"0.0.0.0:2948\"\n");
+    let (code, text) = validate(&write(&dir, "open.toml", &open), &[]);
+    assert_eq!(code, 78, "{text}");
+    assert!(
+        text.contains("key `pose.tcp`") && text.contains("access control"),
+        "{text}"
+    );
+    let token = dir.path().join("pose-token");
+    std::fs::write(&token, "0123456789abcdef0123\n").unwrap();
+    let guarded = format!("{open}token_file = {:?}\n", token.display().to_string());
+    let (code, text) = validate(&write(&dir, "guarded.toml", &guarded), &[]);
+    assert_eq!(code, 0, "{text}");
+    let listed = format!("{open}allow = [\"192.168.10.0/24\", \"not an address\"]\n");
+    let (code, text) = validate(&write(&dir, "listed.toml", &listed), &[]);
+    assert_eq!(code, 78, "{text}");
+    assert!(text.contains("key `pose.allow[1]`"), "{text}");
+    // A Unix socket in a folder that does not exist fails at validate, not at run time.
+    let unix = format!("{BASE}\n[pose]\nunix = \"/nonexistent-rfloc/pose.sock\"\n");
+    let (code, text) = validate(&write(&dir, "unix.toml", &unix), &[]);
+    assert_eq!(code, 78, "{text}");
+    assert!(text.contains("key `pose.unix`"), "{text}");
+}

@@ -248,7 +248,7 @@ impl Parts {
             estimator.check(&mut Checks::new(diag, "estimator"), &est_env);
         }
         if let Some(pose) = &self.pose {
-            pose.check(&mut Checks::new(diag, "pose"));
+            pose.check(&mut Checks::new(diag, "pose"), &env);
         }
         if let Some(log) = &self.log {
             log.check(&mut Checks::new(diag, "log"));

@@ -43,6 +43,18 @@ pub struct PoseOutputConfig {
     /// Per-client queue length before a slow client is dropped.
     #[serde(default = "default_client_queue")]
     pub client_queue: usize,
+    /// Clients served at once (TCP and Unix together); more are turned away.
+    #[serde(default = "default_max_clients")]
+    pub max_clients: usize,
+    /// A file whose first line is the token TCP clients must send first
+    /// (`?AUTH={"token":"…"};`). Relative paths are looked up in `$CREDENTIALS_DIRECTORY` first
+    /// (systemd `LoadCredential=`), then next to the robot file.
+    #[serde(default)]
+    pub token_file: Option<PathBuf>,
+    /// TCP clients allowed to connect: addresses or networks (`192.168.10.0/24`). Empty: any
+    /// client that can reach the listening address.
+    #[serde(default)]
+    pub allow: Vec<String>,
 }
 
 fn default_pose_tcp() -> Option<String> {
@@ -54,6 +66,9 @@ fn default_precision() -> usize {
 fn default_client_queue() -> usize {
     64
 }
+fn default_max_clients() -> usize {
+    32
+}
 
 impl Default for PoseOutputConfig {
     fn default() -> Self {
@@ -63,6 +78,9 @@ impl Default for PoseOutputConfig {
             stdout: false,
             precision: default_precision(),
             client_queue: default_client_queue(),
+            max_clients: default_max_clients(),
+            token_file: None,
+            allow: Vec::new(),
         }
     }
 }
@@ -102,14 +120,62 @@ pub struct StateConfig {
 }
 
 impl PoseOutputConfig {
-    pub(crate) fn check(&self, c: &mut Checks<'_, '_>) {
+    pub(crate) fn check(&self, c: &mut Checks<'_, '_>, env: &crate::devices::CheckEnv<'_>) {
+        let guarded = self.token_file.is_some() || !self.allow.is_empty();
         if let Some(addr) = &self.tcp {
-            if addr.parse::<std::net::SocketAddr>().is_err() {
-                c.error("tcp", format!("{addr:?} is not an ip:port address"));
+            match addr.parse::<std::net::SocketAddr>() {
+                Err(_) => c.error("tcp", format!("{addr:?} is not an ip:port address")),
+                Ok(a) if !a.ip().is_loopback() && !guarded => c.error(
+                    "tcp",
+                    format!("{addr} is reachable from other hosts and the stream has no access control: listen on 127.0.0.1, or set pose.token_file or pose.allow"),
+                ),
+                Ok(_) => {}
+            }
+        }
+        for (i, a) in self.allow.iter().enumerate() {
+            if crate::server::AllowRule::parse(a).is_none() {
+                c.error(
+                    &format!("allow[{i}]"),
+                    format!("{a:?} is not an address or address/prefix"),
+                );
+            }
+        }
+        if let Some(p) = &self.token_file {
+            if env.check_files {
+                match crate::config::resolve_credential(p, env.config_dir) {
+                    None => c.error("token_file", format!("token file {} not found (looked in $CREDENTIALS_DIRECTORY and next to the config)", p.display())),
+                    Some(path) => {
+                        if let Err(e) = crate::server::read_token(&path) {
+                            c.error("token_file", e);
+                        }
+                    }
+                }
+            }
+        }
+        if let (Some(p), true) = (&self.unix, env.check_files) {
+            let parent = p.parent().filter(|d| !d.as_os_str().is_empty());
+            if parent.is_some_and(|d| !d.is_dir()) {
+                c.error(
+                    "unix",
+                    format!("the folder of {} does not exist", p.display()),
+                );
+            }
+            if let Ok(m) = std::fs::symlink_metadata(p) {
+                use std::os::unix::fs::FileTypeExt;
+                if !m.file_type().is_socket() {
+                    c.error(
+                        "unix",
+                        format!(
+                            "{} exists and is not a socket; rfloc will not replace it",
+                            p.display()
+                        ),
+                    );
+                }
             }
         }
         c.count("precision", self.precision as u64, 1, 9);
         c.count("client_queue", self.client_queue as u64, 1, 100_000);
+        c.count("max_clients", self.max_clients as u64, 1, 1024);
     }
 }
 
