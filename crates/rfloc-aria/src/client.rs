@@ -303,6 +303,7 @@ impl AriaClient {
             state_tx,
             rx,
             seq: 0,
+            log: rfloc_transport::LogLimit::default(),
         };
         let span = tracing::info_span!("aria", robot = %identity.name);
         let task = tokio::spawn(worker.run(connector, session).instrument(span));
@@ -717,6 +718,8 @@ struct Worker {
     state_tx: watch::Sender<LinkState>,
     rx: mpsc::Receiver<Request>,
     seq: u64,
+    /// Malformed packets are logged a few at a time, then summarised.
+    log: rfloc_transport::LogLimit,
 }
 
 impl Worker {
@@ -839,7 +842,9 @@ impl Worker {
                 self.counters
                     .malformed_packets
                     .fetch_add(1, Ordering::Relaxed);
-                tracing::warn!(error = %e, "ARIA malformed packet");
+                if let Some(suppressed) = self.log.hit() {
+                    tracing::warn!(error = %e, suppressed, "ARIA malformed packet");
+                }
             }
         }
         None

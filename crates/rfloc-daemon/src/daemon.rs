@@ -357,12 +357,24 @@ impl Router {
             driver,
             state,
             detail,
+            counters,
         } = &event
         {
-            tracing::info!(device = %device, state = state.as_str(), detail = %detail, "device status");
+            if counters.is_empty() {
+                tracing::info!(device = %device, state = state.as_str(), detail = %detail, "device status");
+            } else {
+                tracing::warn!(device = %device, counters = ?counters, "link errors so far");
+            }
             self.hub.publish_device(
                 device,
-                message::device_json(device, driver, *state, detail, SystemTime::now()),
+                message::device_json_with_counters(
+                    device,
+                    driver,
+                    *state,
+                    detail,
+                    counters,
+                    SystemTime::now(),
+                ),
             );
             if *state == DeviceState::Connected {
                 self.health.up(device);

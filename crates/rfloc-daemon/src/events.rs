@@ -71,12 +71,14 @@ pub enum DeviceEvent {
         t: f64,
         text: String,
     },
-    /// A link changed state.
+    /// A link changed state (or reports its error counters).
     Status {
         device: String,
         driver: &'static str,
         state: DeviceState,
         detail: String,
+        /// Error counters of the link (malformed lines, dropped bytes), when it has any.
+        counters: Vec<(&'static str, u64)>,
     },
 }
 
@@ -271,6 +273,7 @@ impl DeviceEvent {
                 driver,
                 state,
                 detail,
+                ..
             } => {
                 json!({"observation": "status", "device": device, "driver": driver, "state": state.as_str(), "detail": detail})
             }

@@ -113,6 +113,9 @@ pub struct Device {
     pub driver: String,
     pub state: String,
     pub detail: String,
+    /// Error counters of the link (malformed lines, dropped bytes …), when it reports any.
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub counters: std::collections::BTreeMap<String, u64>,
 }
 
 /// Frames, time origin and precision of POSE and TARGET messages.
@@ -238,12 +241,29 @@ pub fn device_json(
     detail: &str,
     wall: std::time::SystemTime,
 ) -> String {
+    device_json_with_counters(name, driver, state, detail, &[], wall)
+}
+
+/// One DEVICE line with the link's error counters.
+#[must_use]
+pub fn device_json_with_counters(
+    name: &str,
+    driver: &str,
+    state: DeviceState,
+    detail: &str,
+    counters: &[(&str, u64)],
+    wall: std::time::SystemTime,
+) -> String {
     Message::Device(Device {
         time: crate::time::iso8601(wall),
         name: name.into(),
         driver: driver.into(),
         state: state.as_str().into(),
         detail: detail.into(),
+        counters: counters
+            .iter()
+            .map(|(k, v)| ((*k).to_string(), *v))
+            .collect(),
     })
     .to_line()
 }

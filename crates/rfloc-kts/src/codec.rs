@@ -25,6 +25,8 @@ pub struct CodecStats {
 pub struct KtsCodec {
     framer: LineFramer,
     stats: CodecStats,
+    /// Malformed lines are logged a few at a time, then summarised.
+    log: rfloc_transport::LogLimit,
 }
 
 impl KtsCodec {
@@ -60,7 +62,9 @@ impl KtsCodec {
                     }
                     Err(e) => {
                         self.stats.malformed += 1;
-                        tracing::warn!(%e, "kts: dropped malformed line");
+                        if let Some(suppressed) = self.log.hit() {
+                            tracing::warn!(%e, suppressed, total = self.stats.malformed, "kts: dropped malformed line");
+                        }
                     }
                 }
                 r

@@ -102,7 +102,7 @@ fn parse_rssi(v: &str) -> Result<Rssi, MalformedReason> {
         return Err(bad());
     }
     if !(0..=7).contains(&main) || aux.is_some_and(|a| !(0..=7).contains(&a)) {
-        tracing::warn!(rssi = v, "RSSI outside the 0..7 seen so far");
+        tracing::debug!(rssi = v, "RSSI outside the 0..7 seen so far");
     }
     Ok(Rssi { main, aux })
 }

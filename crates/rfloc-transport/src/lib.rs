@@ -18,6 +18,7 @@
 mod clock;
 mod error;
 mod link;
+mod log_limit;
 mod mock;
 mod recorder;
 pub mod replay;
@@ -30,6 +31,7 @@ use tokio::io::{AsyncRead, AsyncWrite};
 pub use clock::{Clock, ManualClock, MonotonicClock, SharedClock};
 pub use error::TransportError;
 pub use link::{open, DataBits, FlowControl, LinkConfig, Parity, SerialLink, StopBits, TcpLink};
+pub use log_limit::LogLimit;
 pub use mock::{MockTransport, MockTransportBuilder};
 pub use recorder::{CaptureSink, Recorder, REDACTED};
 pub use stamp::{clock_ns, StampedLink};

@@ -206,6 +206,8 @@ pub struct FrameDecoder {
     escape_next: bool,
     garbage: Vec<u8>,
     stats: DecodeStats,
+    /// Resynchronisations are logged a few at a time, then summarised.
+    log: rfloc_transport::LogLimit,
 }
 
 impl FrameDecoder {
@@ -228,6 +230,7 @@ impl FrameDecoder {
             escape_next: false,
             garbage: Vec::new(),
             stats: DecodeStats::default(),
+            log: rfloc_transport::LogLimit::default(),
         }
     }
 
@@ -321,7 +324,9 @@ impl FrameDecoder {
                     self.stats.bad_lengths += 1;
                     let (length, limit) = (self.length, self.max_frame_data);
                     let bytes = self.reject();
-                    tracing::warn!(length, limit, bytes = %HexBytes(&bytes), "xbee: bad frame length, resynchronising");
+                    if let Some(suppressed) = self.log.hit() {
+                        tracing::warn!(length, limit, suppressed, bytes = %HexBytes(&bytes), "xbee: bad frame length, resynchronising");
+                    }
                     return Some(Err(DecodeError::BadLength {
                         length,
                         limit,
@@ -349,7 +354,9 @@ impl FrameDecoder {
                 } else {
                     self.stats.bad_checksums += 1;
                     let bytes = self.reject();
-                    tracing::warn!(expected, received = byte, bytes = %HexBytes(&bytes), "xbee: bad checksum, resynchronising");
+                    if let Some(suppressed) = self.log.hit() {
+                        tracing::warn!(expected, received = byte, suppressed, bytes = %HexBytes(&bytes), "xbee: bad checksum, resynchronising");
+                    }
                     Some(Err(DecodeError::BadChecksum {
                         expected,
                         received: byte,
@@ -403,7 +410,9 @@ impl FrameDecoder {
                 }
             }
         }
-        tracing::warn!(bytes = %HexBytes(&bytes), "xbee: truncated frame dropped");
+        if let Some(suppressed) = self.log.hit() {
+            tracing::warn!(suppressed, bytes = %HexBytes(&bytes), "xbee: truncated frame dropped");
+        }
         DecodeError::Truncated { bytes }
     }
 
@@ -411,7 +420,9 @@ impl FrameDecoder {
         let bytes = std::mem::take(&mut self.garbage);
         self.stats.garbage_runs += 1;
         self.stats.dropped_bytes += bytes.len() as u64;
-        tracing::warn!(bytes = %HexBytes(&bytes), "xbee: bytes outside a frame dropped");
+        if let Some(suppressed) = self.log.hit() {
+            tracing::warn!(suppressed, bytes = %HexBytes(&bytes), "xbee: bytes outside a frame dropped");
+        }
         DecodeError::Garbage { bytes }
     }
 }

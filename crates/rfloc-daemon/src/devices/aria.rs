@@ -116,8 +116,24 @@ async fn run(ctx: DeviceContext, settings: AriaSettings) {
         };
         let mut observer = SipObserver::new(settings.sonar);
         let mut link = client.link_state();
+        let mut summary = tokio::time::interval(std::time::Duration::from_secs(10));
+        let mut reported = 0u64;
         loop {
             tokio::select! {
+                _ = summary.tick() => {
+                    // Errors on the link: counted in the DEVICE line, summarised in the log.
+                    let s = client.stats();
+                    let errors = s.dropped_bytes + s.bad_checksums + s.malformed_packets;
+                    if errors != reported {
+                        reported = errors;
+                        ctx.status_with_counters(DeviceState::Connected, format!("robot {}", client.identity().name), vec![
+                            ("sips", s.sips),
+                            ("dropped_bytes", s.dropped_bytes),
+                            ("bad_checksums", s.bad_checksums),
+                            ("malformed_packets", s.malformed_packets),
+                        ]).await;
+                    }
+                }
                 () = ctx.stop.cancelled() => {
                     if let Err(e) = client.stop().await {
                         tracing::warn!(error = %e, "STOP on shutdown failed");

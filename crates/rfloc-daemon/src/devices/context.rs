@@ -282,6 +282,16 @@ impl DeviceContext {
 
     /// Sends a status event (never blocks the device task for long).
     pub async fn status(&self, state: DeviceState, detail: impl Into<String>) {
+        self.status_with_counters(state, detail, Vec::new()).await;
+    }
+
+    /// Sends a status event with the link's error counters (they appear in the DEVICE line).
+    pub async fn status_with_counters(
+        &self,
+        state: DeviceState,
+        detail: impl Into<String>,
+        counters: Vec<(&'static str, u64)>,
+    ) {
         let _ = self
             .events
             .send(DeviceEvent::Status {
@@ -289,6 +299,7 @@ impl DeviceContext {
                 driver: self.device.driver.kind(),
                 state,
                 detail: detail.into(),
+                counters,
             })
             .await;
     }

@@ -10,6 +10,9 @@ use crate::devices::{retry_later, CheckEnv, DeviceContext, Driver};
 use crate::events::{DeviceEvent, DeviceState};
 use crate::simulation::BoxFuture;
 
+/// How often a link's error counters are reported (when they changed).
+const COUNTER_PERIOD: Duration = Duration::from_secs(10);
+
 /// `kind = "kts"`: the HF floor-tag reader on a UART.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -102,8 +105,25 @@ async fn run(ctx: DeviceContext, settings: KtsSettings) {
         }
         attempt = 0;
         ctx.status(DeviceState::Connected, "scanning").await;
+        let mut summary = tokio::time::interval(COUNTER_PERIOD);
+        let mut reported = 0u64;
         loop {
             tokio::select! {
+                _ = summary.tick() => {
+                    // Errors on the link: counted in the DEVICE line, summarised in the log.
+                    let s = client.stats();
+                    let errors = s.codec.malformed + s.codec.control_bytes_dropped + s.codec.overflow_bytes_dropped + s.events_dropped;
+                    if errors != reported {
+                        reported = errors;
+                        ctx.status_with_counters(DeviceState::Connected, "scanning", vec![
+                            ("lines", s.codec.lines),
+                            ("malformed_lines", s.codec.malformed),
+                            ("control_bytes_dropped", s.codec.control_bytes_dropped),
+                            ("overlong_bytes_dropped", s.codec.overflow_bytes_dropped),
+                            ("events_dropped", s.events_dropped),
+                        ]).await;
+                    }
+                }
                 () = ctx.stop.cancelled() => {
                     let _ = tokio::time::timeout(Duration::from_millis(500), client.stop_scan()).await;
                     ctx.status(DeviceState::Closed, "stopped").await;
