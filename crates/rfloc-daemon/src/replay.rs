@@ -174,7 +174,7 @@ fn estimator_for(
                 crate::config::PIPELINES.join(", ")
             )
         }),
-        None if has("alien") && dir.join("survey.json").exists() && has("pioneer") => {
+        None if has("alien") && learned(dir, "survey.json") && has("pioneer") => {
             Ok(Some(EstimatorConfig::Snapshot(snapshot_settings(dir))))
         }
         None if has("pioneer") && !has("kts") && !has("xbee") && !has("alien") => {
@@ -187,12 +187,17 @@ fn estimator_for(
 /// Snapshot settings for a session folder without a robot file: the tag map when the folder
 /// holds `survey.json` and `tag-map.json`, the cluster database `snapshot-db.json` otherwise.
 fn snapshot_settings(dir: &Path) -> crate::config::SnapshotSettings {
-    let both = dir.join("survey.json").exists() && dir.join("tag-map.json").exists();
+    let both = learned(dir, "survey.json") && learned(dir, "tag-map.json");
     crate::config::SnapshotSettings {
         survey: both.then(|| "survey.json".into()),
         tag_map: both.then(|| "tag-map.json".into()),
         ..crate::config::SnapshotSettings::default()
     }
+}
+
+/// Whether `dir` holds the learned file `name` (through its learned-state set).
+fn learned(dir: &Path, name: &str) -> bool {
+    rfloc_snapshot::state_set::resolve(dir, Path::new(name)).is_ok_and(|p| p.is_file())
 }
 
 /// The recorded consumption order: (device, stamp in ns).

@@ -28,6 +28,7 @@ pub mod database;
 pub mod filter;
 pub mod lattice;
 pub mod navigate;
+pub mod state_set;
 pub mod store;
 pub mod survey;
 pub mod tagmap;

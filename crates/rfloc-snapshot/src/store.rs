@@ -71,8 +71,27 @@ fn save_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), Snapshot
 /// Reads and parses a JSON file.
 fn load_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, SnapshotError> {
     let bytes = fs::read(path).map_err(io_err(path))?;
-    serde_json::from_slice(&bytes).map_err(|source| SnapshotError::Format {
+    parse_json(&bytes, path)
+}
+
+/// Parses JSON bytes (`path` names them in errors).
+fn parse_json<T: serde::de::DeserializeOwned>(
+    bytes: &[u8],
+    path: &Path,
+) -> Result<T, SnapshotError> {
+    serde_json::from_slice(bytes).map_err(|source| SnapshotError::Format {
         path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// The JSON bytes [`save_json`] writes (for a set written with [`crate::state_set::write_set`]).
+///
+/// # Errors
+/// [`SnapshotError::Format`] if `value` cannot be serialised.
+pub fn to_json<T: serde::Serialize>(value: &T, name: &str) -> Result<Vec<u8>, SnapshotError> {
+    serde_json::to_vec(value).map_err(|source| SnapshotError::Format {
+        path: PathBuf::from(name),
         source,
     })
 }
@@ -93,7 +112,18 @@ impl SnapshotDatabase {
     /// [`SnapshotError::Version`] for another layout version, [`SnapshotError::InvalidModel`]
     /// when the transition model does not match the states.
     pub fn load(path: &Path) -> Result<Self, SnapshotError> {
-        let mut db: SnapshotDatabase = load_json(path)?;
+        Self::checked(load_json(path)?)
+    }
+
+    /// [`SnapshotDatabase::load`] from bytes (`name` names them in errors).
+    ///
+    /// # Errors
+    /// As [`SnapshotDatabase::load`].
+    pub fn from_json(bytes: &[u8], name: &str) -> Result<Self, SnapshotError> {
+        Self::checked(parse_json(bytes, Path::new(name))?)
+    }
+
+    fn checked(mut db: SnapshotDatabase) -> Result<Self, SnapshotError> {
         if db.format_version != FORMAT_VERSION {
             return Err(SnapshotError::Version {
                 found: db.format_version,
@@ -128,7 +158,18 @@ impl crate::tagmap::TagMap {
     /// [`SnapshotError::InvalidModel`] for a tag with a non-finite position or a model without
     /// coefficients.
     pub fn load(path: &Path) -> Result<Self, SnapshotError> {
-        let mut map: crate::tagmap::TagMap = load_json(path)?;
+        Self::checked(load_json(path)?)
+    }
+
+    /// [`crate::tagmap::TagMap::load`] from bytes (`name` names them in errors).
+    ///
+    /// # Errors
+    /// As [`crate::tagmap::TagMap::load`].
+    pub fn from_json(bytes: &[u8], name: &str) -> Result<Self, SnapshotError> {
+        Self::checked(parse_json(bytes, Path::new(name))?)
+    }
+
+    fn checked(mut map: crate::tagmap::TagMap) -> Result<Self, SnapshotError> {
         if map.model.coeffs.is_empty() {
             return Err(SnapshotError::InvalidModel(
                 "tag map: read model without coefficients".into(),
@@ -165,7 +206,18 @@ impl crate::survey::Survey {
     /// [`SnapshotError::Version`] for another layout version, [`SnapshotError::InvalidModel`]
     /// for a pose that is not finite.
     pub fn load(path: &Path) -> Result<Self, SnapshotError> {
-        let survey: crate::survey::Survey = load_json(path)?;
+        Self::checked(load_json(path)?)
+    }
+
+    /// [`crate::survey::Survey::load`] from bytes (`name` names them in errors).
+    ///
+    /// # Errors
+    /// As [`crate::survey::Survey::load`].
+    pub fn from_json(bytes: &[u8], name: &str) -> Result<Self, SnapshotError> {
+        Self::checked(parse_json(bytes, Path::new(name))?)
+    }
+
+    fn checked(survey: crate::survey::Survey) -> Result<Self, SnapshotError> {
         if survey.format_version != crate::survey::SURVEY_FORMAT_VERSION {
             return Err(SnapshotError::Version {
                 found: survey.format_version,

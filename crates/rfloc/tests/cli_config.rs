@@ -204,3 +204,31 @@ fn a_pose_stream_for_other_hosts_needs_access_control() {
     assert_eq!(code, 78, "{text}");
     assert!(text.contains("key `pose.unix`"), "{text}");
 }
+
+#[test]
+fn learned_state_that_is_missing_or_damaged_fails_validation() {
+    let dir = tempfile::tempdir().unwrap();
+    let state = dir.path().join("state");
+    std::fs::create_dir(&state).unwrap();
+    let robot = format!(
+        "[robot]\nname = \"uhf\"\n\n[[device]]\nname = \"base\"\nlink = {{ kind = \"tcp\", address = \"127.0.0.1:9\" }}\n[device.driver]\nkind = \"aria\"\n\n[[device]]\nname = \"uhf\"\nlink = {{ kind = \"tcp\", address = \"127.0.0.1:9\" }}\n[device.driver]\nkind = \"alien\"\n\n[estimator]\npipeline = \"snapshot\"\n\n[state]\ndir = {:?}\n",
+        state.display().to_string()
+    );
+    let path = write(&dir, "uhf.toml", &robot);
+    // Missing.
+    let (code, text) = validate(&path, &[]);
+    assert_eq!(code, 78, "{text}");
+    assert!(text.contains("key `estimator.database`"), "{text}");
+    // Truncated.
+    std::fs::write(
+        state.join("snapshot-db.json"),
+        "{\"format_version\": 1, \"sta",
+    )
+    .unwrap();
+    let (code, text) = validate(&path, &[]);
+    assert_eq!(code, 78, "{text}");
+    assert!(text.contains("malformed"), "{text}");
+    // Another machine's file is not looked at.
+    let (code, _) = validate(&path, &["--no-device-check"]);
+    assert_eq!(code, 0);
+}

@@ -309,7 +309,7 @@ async fn uhf_daemon_localises_on_the_tag_map_and_recovers_from_a_kidnap() {
 
     let (status, log) = daemon.terminate().await;
     assert!(status.success(), "{log}");
-    assert!(log.contains("tag map loaded"), "{log}");
+    assert!(log.contains("tag map and survey loaded"), "{log}");
     drop(rig);
 
     // The recorded reader link: the password never reached the file, each averaged snapshot is

@@ -68,7 +68,10 @@ fn start_and_goal(survey: &rfloc_snapshot::Survey) -> (rfloc_pose::Pose2, (f64, 
 async fn uhf_daemon_drives_to_a_goal_on_its_tag_map() {
     let dir = tempfile::tempdir().unwrap();
     let (trial, scenario) = explore(dir.path());
-    let survey = rfloc_snapshot::Survey::load(&trial.join("survey.json")).unwrap();
+    let survey = rfloc_snapshot::Survey::load(
+        &rfloc_snapshot::state_set::resolve(&trial, std::path::Path::new("survey.json")).unwrap(),
+    )
+    .unwrap();
     let (start, goal) = start_and_goal(&survey);
     let port = common::free_port();
     let cfg = dir.path().join("robot.toml");

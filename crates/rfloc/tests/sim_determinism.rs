@@ -196,7 +196,10 @@ fn seed000_reduced_runs_are_identical() {
             "truth.csv",
             "estimate.csv",
             "navigation.csv",
-            "snapshot-db.json",
+            "snapshot-db.v1.json",
+            "survey.v1.json",
+            "tag-map.v1.json",
+            "state-manifest.json",
         ],
     );
     eprintln!(

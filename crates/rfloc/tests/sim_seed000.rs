@@ -64,13 +64,13 @@ fn seed000_reduced_trial_learns_localises_and_records() {
     // Two reads per step: 300 exploration steps and 1–41 navigation steps.
     assert!(polls >= 602, "{polls} tag-list polls");
     // The saved databases load back; the localisation database has k = n/2 states.
-    let db = rfloc_snapshot::SnapshotDatabase::load(&trial.join("snapshot-db.json")).unwrap();
+    let db = rfloc_snapshot::SnapshotDatabase::load(&learned(&trial, "snapshot-db.json")).unwrap();
     assert!(
         db.states.len() >= 140 && db.states.len() <= 150,
         "{}",
         db.states.len()
     );
-    rfloc_snapshot::SnapshotDatabase::load(&trial.join("snapshot-db-odometry.json")).unwrap();
+    rfloc_snapshot::SnapshotDatabase::load(&learned(&trial, "snapshot-db-odometry.json")).unwrap();
     // The trial's row of the Table 4.9 comparison sits next to the seed's row.
     let table = std::fs::read_to_string(results.join("table-4.9.md")).unwrap();
     let row = table.lines().find(|l| l.starts_with("| 1 |")).unwrap();
@@ -110,7 +110,7 @@ fn seed000_reduced_trial_learns_localises_and_records() {
         "the tag map does not beat the fingerprints\n{stdout}"
     );
     // The tag map was saved atomically and loads back; its tags sit near the world's.
-    let map = rfloc_snapshot::TagMap::load(&trial.join("tag-map.json")).unwrap();
+    let map = rfloc_snapshot::TagMap::load(&learned(&trial, "tag-map.json")).unwrap();
     assert!(map.len() > 300, "{} tags mapped", map.len());
     let median = value("tag_map_median_error_m");
     assert!(median < 0.1, "median tag position error {median} m");
@@ -168,4 +168,9 @@ fn seed000_reduced_trial_learns_localises_and_records() {
     assert!(rows
         .iter()
         .all(|r| (0.0..=5.0).contains(&r[1]) && (0.0..=5.0).contains(&r[2])));
+}
+
+/// A learned file of a trial folder, through its learned-state set.
+fn learned(trial: &std::path::Path, name: &str) -> std::path::PathBuf {
+    rfloc_snapshot::state_set::resolve(trial, std::path::Path::new(name)).unwrap()
 }

@@ -247,25 +247,21 @@ fn check_snapshot(s: &SnapshotSettings, c: &mut Checks<'_, '_>, env: &EstimatorE
         ),
         _ => {}
     }
-    if env.check_files {
-        let dir = env.state_dir.or(env.config_dir);
-        let needed: Vec<(&str, &PathBuf)> = match (&s.survey, &s.tag_map) {
-            (Some(survey), Some(map)) => vec![("survey", survey), ("tag_map", map)],
-            _ => vec![("database", &s.database)],
+    if env.check_files && !(s.survey.is_some() ^ s.tag_map.is_some()) {
+        // Every file the run will read, loaded and checked as the run would.
+        let dir = env.state_dir;
+        let key = if s.survey.is_some() {
+            "survey"
+        } else {
+            "database"
         };
-        for (key, file) in needed {
-            let path = dir.map_or_else(|| file.clone(), |d| d.join(file));
-            match std::fs::metadata(&path) {
-                Ok(m) if m.is_file() && m.len() > 0 => {}
-                Ok(_) => c.error(key, format!("{} is empty or not a file", path.display())),
-                Err(e) => c.error(
-                    key,
-                    format!(
-                        "{}: {e} (learn it with `rfloc sim` or a survey run; [state] dir)",
-                        path.display()
-                    ),
+        if let Err(e) = crate::pipeline::load_learned_check(s, dir) {
+            c.error(
+                key,
+                format!(
+                    "{e} (learned state in [state] dir; learn it with `rfloc sim` or a survey run)"
                 ),
-            }
+            );
         }
     }
 }

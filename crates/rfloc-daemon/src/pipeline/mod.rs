@@ -17,6 +17,7 @@ pub use ekfslam::EkfSlamPipeline;
 pub use emitter::EmitterPipeline;
 pub use hfgrid::HfGridPipeline;
 pub use odometry::OdometryPipeline;
+pub use snapshot::load_learned_check;
 pub use snapshot::SnapshotPipeline;
 pub use tags::{builtin_tag_field, load_tag_map, tag_grid};
 
@@ -82,7 +83,7 @@ pub fn build(config: &EstimatorConfig, env: PipelineEnv<'_>) -> Result<Box<dyn P
         EstimatorConfig::Hfgrid(s) => {
             Box::new(HfGridPipeline::new(s, tag_grid(s, env.config_dir)?))
         }
-        EstimatorConfig::Snapshot(s) => Box::new(SnapshotPipeline::new(s, env.state_dir)),
+        EstimatorConfig::Snapshot(s) => Box::new(SnapshotPipeline::new(s, env.state_dir)?),
         EstimatorConfig::Ekfslam(s) => Box::new(EkfSlamPipeline::new(s)?),
         EstimatorConfig::Emitter(s) => Box::new(EmitterPipeline::new(s)?),
     })

@@ -122,45 +122,49 @@ impl std::fmt::Debug for SnapshotPipeline {
 }
 
 /// `path` relative to the state folder unless absolute.
-fn in_state_dir(path: &Path, state_dir: Option<&Path>) -> PathBuf {
+/// The file that holds `name` of the state folder: through the folder's learned-state set
+/// (`state-manifest.json`, checked) when it has one. Absolute paths are taken as they are.
+fn state_file(name: &Path, state_dir: Option<&Path>) -> Result<PathBuf, String> {
     match state_dir {
-        Some(dir) if path.is_relative() => dir.join(path),
-        _ => path.to_path_buf(),
+        Some(dir) if name.is_relative() => {
+            rfloc_snapshot::state_set::resolve(dir, name).map_err(|e| e.to_string())
+        }
+        Some(dir) => Ok(dir.join(name)),
+        None => Ok(name.to_path_buf()),
     }
 }
 
-/// The tag-map localiser, when both of its files are configured and load, with its survey.
-fn load_map_localiser(
+/// Loads every learned file the settings name, as a run would (`rfloc validate`).
+pub fn load_learned_check(
     settings: &SnapshotSettings,
     state_dir: Option<&Path>,
-) -> Option<(MapLocaliser, Survey)> {
-    let (survey, tag_map) = (settings.survey.as_ref()?, settings.tag_map.as_ref()?);
-    let (survey_path, map_path) = (
-        in_state_dir(survey, state_dir),
-        in_state_dir(tag_map, state_dir),
-    );
-    let survey = match Survey::load(&survey_path) {
-        Ok(s) => s,
-        Err(e) => {
-            tracing::error!(path = %survey_path.display(), error = %e, "survey not loaded");
-            return None;
-        }
-    };
-    let tags = match TagMap::load(&map_path) {
-        Ok(m) => m,
-        Err(e) => {
-            tracing::error!(path = %map_path.display(), error = %e, "tag map not loaded");
-            return None;
-        }
-    };
-    tracing::info!(
-        survey = %survey_path.display(),
-        tag_map = %map_path.display(),
-        samples = survey.samples.len(),
-        tags = tags.len(),
-        "tag map loaded"
-    );
-    Some((MapLocaliser::new(tags, &survey, settings.seed), survey))
+) -> Result<(), String> {
+    load_learned(settings, state_dir).map(drop)
+}
+
+/// Loads (and checks) every learned file the settings name; the error says which and why.
+fn load_learned(
+    settings: &SnapshotSettings,
+    state_dir: Option<&Path>,
+) -> Result<(Localiser, Option<Survey>), String> {
+    if let (Some(survey), Some(tag_map)) = (&settings.survey, &settings.tag_map) {
+        let survey_path = state_file(survey, state_dir)?;
+        let map_path = state_file(tag_map, state_dir)?;
+        let survey = Survey::load(&survey_path).map_err(|e| format!("survey: {e}"))?;
+        let tags = TagMap::load(&map_path).map_err(|e| format!("tag map: {e}"))?;
+        tracing::info!(
+            survey = %survey_path.display(),
+            tag_map = %map_path.display(),
+            "tag map and survey loaded"
+        );
+        let map = MapLocaliser::new(tags, &survey, settings.seed);
+        return Ok((Localiser::Map(Box::new(map)), Some(survey)));
+    }
+    let path = state_file(&settings.database, state_dir)?;
+    let db = SnapshotDatabase::load(&path).map_err(|e| format!("database: {e}"))?;
+    tracing::info!(path = %path.display(), states = db.state_count(), "learned snapshot database loaded");
+    let filter = StateFilter::new(&db, FilterConfig::default());
+    Ok((Localiser::Clusters(Box::new((db, filter))), None))
 }
 
 impl SnapshotPipeline {
@@ -178,50 +182,37 @@ impl SnapshotPipeline {
         }
     }
 
-    /// Loads the learned files named in the settings (relative paths from `state_dir`): the
-    /// survey and tag map when both are set, the cluster database otherwise.
-    #[must_use]
-    pub fn new(settings: &SnapshotSettings, state_dir: Option<&Path>) -> Self {
-        let path = in_state_dir(&settings.database, state_dir);
-        if let Some((map, survey)) = load_map_localiser(settings, state_dir) {
-            let goal = settings.goal.map(|[x, y]| {
-                GoalDrive::plan(
-                    &survey,
-                    GoalSettings {
-                        goal: (x, y),
-                        radius_m: settings.goal_radius_m,
-                        action_duration_s: settings.action_duration_s,
-                        drive_duration_s: settings.drive_duration_s,
-                    },
-                )
-            });
-            return Self {
-                localiser: Some(Localiser::Map(Box::new(map))),
-                goal,
-                path,
-                warned: false,
-            };
-        }
-        if settings.goal.is_some() {
-            tracing::error!("no tag map: the goal is not driven to");
-        }
-        let localiser = match SnapshotDatabase::load(&path) {
-            Ok(db) => {
-                tracing::info!(path = %path.display(), states = db.state_count(), "learned snapshot database loaded");
-                let filter = StateFilter::new(&db, FilterConfig::default());
-                Some(Localiser::Clusters(Box::new((db, filter))))
+    /// Loads the learned files named in the settings (relative paths from `state_dir`, through
+    /// its learned-state set): the survey and tag map when both are set, the cluster database
+    /// otherwise. A file that is missing, damaged or from another set is an error.
+    pub fn new(settings: &SnapshotSettings, state_dir: Option<&Path>) -> Result<Self, String> {
+        if let Some(dir) = state_dir {
+            if let Ok(removed) = rfloc_snapshot::state_set::clean_stale(dir) {
+                for p in removed {
+                    tracing::warn!(path = %p.display(), "removed what an interrupted save left");
+                }
             }
-            Err(e) => {
-                tracing::error!(path = %path.display(), error = %e, "no learned snapshot database");
-                None
-            }
+        }
+        let path = state_file(&settings.database, state_dir).unwrap_or_default();
+        let (localiser, survey) = load_learned(settings, state_dir)?;
+        let goal = match (&survey, settings.goal) {
+            (Some(survey), Some([x, y])) => Some(GoalDrive::plan(
+                survey,
+                GoalSettings {
+                    goal: (x, y),
+                    radius_m: settings.goal_radius_m,
+                    action_duration_s: settings.action_duration_s,
+                    drive_duration_s: settings.drive_duration_s,
+                },
+            )),
+            _ => None,
         };
-        Self {
-            localiser,
-            goal: None,
+        Ok(Self {
+            localiser: Some(localiser),
+            goal,
             path,
             warned: false,
-        }
+        })
     }
 }
 

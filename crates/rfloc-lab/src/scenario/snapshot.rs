@@ -16,7 +16,7 @@
 //!    Pioneer's SIPs report a wheel stall, the odometry pose is kept as a stall place and the
 //!    next [`STALL_TURN_STEPS`] actions are rotations ([`reflex`]).
 //! 2. **Learning**: the seed's cluster database (`SnapshotDatabase::learn`, k-medoids, k = n/2,
-//!    true poses) is saved atomically to `snapshot-db.json` and loaded back; the same with
+//!    true poses) is saved, with the survey and the tag map, as one learned-state set (`state-manifest.json`, versioned files) and loaded back; the same with
 //!    odometry poses gives `snapshot-db-odometry.json`. Both are scored as comparisons. The robot
 //!    itself uses the **fine map** (`FingerprintMap`: every exploration snapshot at its odometry
 //!    pose), the **learned motion** of each action (`ActionModel`: mean odometry increment of the
@@ -61,6 +61,7 @@ use rand_chacha::ChaCha8Rng;
 use rfloc_pose::{EstimateMode, Pose2};
 use rfloc_sim::recorder::TrialRecorder;
 use rfloc_sim::Scenario;
+use rfloc_snapshot::{state_set, store};
 use rfloc_snapshot::{
     Action, ActionTable, CycleBreaker, ExplorationConfig, ExplorationInput, ExplorationPolicy,
     FilterConfig, FingerprintMap, LatticeConfig, LearnConfig, Observation, ReadModel, Snapshot,
@@ -471,12 +472,11 @@ pub async fn run_trial(
     let (by_truth, learned) = learn_blocking(by_truth, config)
         .await
         .context("learning the database")?;
-    let db_path = dir.join("snapshot-db.json");
-    learned
-        .save(&db_path)
-        .with_context(|| format!("saving {}", db_path.display()))?;
-    let db = SnapshotDatabase::load(&db_path)
-        .with_context(|| format!("loading {}", db_path.display()))?;
+    // Everything learned is written as one set (the database, the survey and the tag map
+    // together: a crash leaves the previous set whole), and used from its reloaded copies.
+    let db_bytes = store::to_json(&learned, "snapshot-db.json")?;
+    let db = SnapshotDatabase::from_json(&db_bytes, "snapshot-db.json")
+        .context("reloading the database")?;
     let reload_diff = reload_difference(&learned, &db)?;
     let by_odom: Vec<Observation> = by_truth
         .iter()
@@ -489,50 +489,50 @@ pub async fn run_trial(
     let (_, odom_db) = learn_blocking(by_odom, config)
         .await
         .context("learning (odometry)")?;
-    odom_db
-        .save(&dir.join("snapshot-db-odometry.json"))
-        .context("saving the odometry database")?;
+    let odom_bytes = store::to_json(&odom_db, "snapshot-db-odometry.json")?;
 
-    // The survey: every exploration snapshot at the robot's odometry pose, saved atomically
-    // (a live robot localises from it and the tag map: `[estimator] survey`, `tag_map`); the
-    // fingerprints and the tag map are learned from the reloaded copy.
-    let survey_path = dir.join("survey.json");
-    Survey::with_actions(
-        by_truth
-            .iter()
-            .zip(&odom_poses)
-            .enumerate()
-            .map(|(i, (o, p))| {
-                (
-                    &o.snapshot,
-                    *p,
-                    o.action,
-                    stalled_steps.get(i).copied().unwrap_or(false),
-                )
-            }),
-    )
-    .save(&survey_path)
-    .with_context(|| format!("saving {}", survey_path.display()))?;
-    let survey = Arc::new(
-        Survey::load(&survey_path).with_context(|| format!("loading {}", survey_path.display()))?,
-    );
+    // The survey: every exploration snapshot at the robot's odometry pose (a live robot
+    // localises from it and the tag map: `[estimator] survey`, `tag_map`); the fingerprints and
+    // the tag map are learned from the reloaded copy.
+    let survey_bytes =
+        store::to_json(
+            &Survey::with_actions(by_truth.iter().zip(&odom_poses).enumerate().map(
+                |(i, (o, p))| {
+                    (
+                        &o.snapshot,
+                        *p,
+                        o.action,
+                        stalled_steps.get(i).copied().unwrap_or(false),
+                    )
+                },
+            )),
+            "survey.json",
+        )?;
+    let survey =
+        Arc::new(Survey::from_json(&survey_bytes, "survey.json").context("reloading the survey")?);
     // The fine localisation map: the survey's snapshots as fingerprints.
     let fingerprints = survey.fingerprints(config.distance);
     // The tag map: every tag read often enough, placed where its reads and misses along the
-    // exploration path (odometry poses) put it; saved atomically and used from the reloaded
-    // copy.
+    // exploration path (odometry poses) put it; used from the reloaded copy.
     let (map_samples, map_model) = (Arc::clone(&survey), read_model(scenario));
     let learned_tags = tokio::task::spawn_blocking(move || {
         TagMap::learn(map_samples.pairs(), map_model, TagMapConfig::default())
     })
     .await
     .map_err(|e| anyhow::anyhow!("tag mapping task failed: {e}"))?;
-    let tags_path = dir.join("tag-map.json");
-    learned_tags
-        .save(&tags_path)
-        .with_context(|| format!("saving {}", tags_path.display()))?;
+    let tags_bytes = store::to_json(&learned_tags, "tag-map.json")?;
     let tag_map =
-        TagMap::load(&tags_path).with_context(|| format!("loading {}", tags_path.display()))?;
+        TagMap::from_json(&tags_bytes, "tag-map.json").context("reloading the tag map")?;
+    state_set::write_set(
+        dir,
+        &[
+            ("snapshot-db.json", db_bytes),
+            ("snapshot-db-odometry.json", odom_bytes),
+            ("survey.json", survey_bytes),
+            ("tag-map.json", tags_bytes),
+        ],
+    )
+    .with_context(|| format!("saving the learned state in {}", dir.display()))?;
     let tag_errors: Vec<f64> = tag_map
         .tags
         .iter()
