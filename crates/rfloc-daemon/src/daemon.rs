@@ -240,7 +240,7 @@ pub async fn run_with_pipeline(
     let deadline = sim
         .as_ref()
         .and_then(|s| s.duration_s())
-        .map(|d| tokio::time::Instant::now() + Duration::from_secs_f64(d / time_scale.max(1e-6)));
+        .map(|d| tokio::time::Instant::now() + crate::time::seconds(d / time_scale.max(1e-6)));
     let mut router = Router {
         hub: hub.clone(),
         thread_tx: thread.tx.clone(),
@@ -250,7 +250,7 @@ pub async fn run_with_pipeline(
         stale: StaleWatch::new(&cfg, time_scale),
         last_consumed: (0, tokio::time::Instant::now()),
         health,
-        max_down: Duration::from_secs_f64(cfg.supervision.max_down_s),
+        max_down: crate::time::seconds(cfg.supervision.max_down_s),
     };
     router.run(ev_rx, &stop, deadline).await;
 
@@ -540,7 +540,7 @@ async fn supervise(
             Err(e) => format!("device task stopped: {e}"),
         };
         // A task that ran well for a while starts its back-off afresh.
-        if started.elapsed() > Duration::from_secs_f64(backoff.max_s) {
+        if started.elapsed() > crate::time::seconds(backoff.max_s) {
             restarts = 0;
         }
         let wait = backoff.delay(restarts, seed);
@@ -585,7 +585,7 @@ impl StaleWatch {
                     (
                         d.name.clone(),
                         (
-                            Duration::from_secs_f64(d.stale_after() / time_scale.max(1e-6)),
+                            crate::time::seconds(d.stale_after() / time_scale.max(1e-6)),
                             d.driver.kind(),
                         ),
                     )

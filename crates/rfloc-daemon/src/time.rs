@@ -94,6 +94,18 @@ impl TimeOrigin {
     }
 }
 
+/// A duration of `secs` seconds that cannot panic: not-a-number and negative values are zero,
+/// and values are capped at 30 years (a wait that long is forever; an `Instant` plus it still
+/// fits). The daemon's checks keep configured values far inside this; it is the last guard.
+#[must_use]
+pub fn seconds(secs: f64) -> std::time::Duration {
+    const CAP_S: f64 = 30.0 * 365.25 * 86_400.0;
+    if secs.is_nan() || secs <= 0.0 {
+        return std::time::Duration::ZERO;
+    }
+    std::time::Duration::from_secs_f64(secs.min(CAP_S))
+}
+
 /// ISO 8601 (UTC, milliseconds) of a system time: the time of a status change.
 #[must_use]
 pub fn iso8601(t: SystemTime) -> String {
@@ -128,6 +140,16 @@ mod tests {
         assert_eq!(whole.iso8601(14.776_625), "2026-11-21T10:00:14.776Z");
         assert!((whole.stamp(14.776_625) - 1_795_255_214.776_625).abs() < 1e-6);
         assert!(TimeOrigin::parse_rfc3339("yesterday").is_err());
+    }
+
+    #[test]
+    fn seconds_never_panic() {
+        assert_eq!(seconds(f64::NAN), std::time::Duration::ZERO);
+        assert_eq!(seconds(-1.0), std::time::Duration::ZERO);
+        assert_eq!(seconds(1.5), std::time::Duration::from_millis(1500));
+        let far = seconds(1e300);
+        assert!(far > std::time::Duration::from_secs(900_000_000));
+        let _ = std::time::Instant::now() + seconds(f64::INFINITY);
     }
 
     #[test]

@@ -232,3 +232,30 @@ fn learned_state_that_is_missing_or_damaged_fails_validation() {
     let (code, _) = validate(&path, &["--no-device-check"]);
     assert_eq!(code, 0);
 }
+
+/// Values that once validated and then crashed the daemon (exit 101, a panic converting float
+/// seconds or formatting), and others of their kind: each is a configuration error now.
+#[test]
+fn numbers_out_of_range_are_configuration_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let sim = std::fs::read_to_string(workspace().join("config/sim.toml")).unwrap();
+    let cases: &[(&str, &str, &str)] = &[
+        ("stale_after_s = 2.0", "stale_after_s = 1e300", "device[1].stale_after_s"),
+        ("duration_s = 40.0", "duration_s = -1", "simulation.duration_s"),
+        ("duration_s = 40.0", "duration_s = 1e300", "simulation.duration_s"),
+        ("stdout = true", "stdout = true\nprecision = 100000", "pose.precision"),
+        ("pulse_period_s = 0.5", "pulse_period_s = 1e300", "device[0].driver.pulse_period_s"),
+        ("pulse_period_s = 0.5", "pulse_period_s = inf", "device[0].driver.pulse_period_s"),
+        ("kind = \"kts\"", "kind = \"kts\"\nresync_after_s = 1e300", "device[1].driver.resync_after_s"),
+        ("stdout = true", "stdout = true\nclient_queue = 0", "pose.client_queue"),
+        ("time_scale = 5.0", "time_scale = nan", "simulation.time_scale"),
+        ("name = \"sim-agv\"", "name = \"sim-agv\"\n\n[log]\nlevel = \"loud\"", "log.level"),
+    ];
+    for (i, (old, new, key)) in cases.iter().enumerate() {
+        let text = sim.replacen(old, new, 1);
+        assert_ne!(text, sim, "config/sim.toml has no {old:?}");
+        let (code, out) = validate(&write(&dir, &format!("case{i}.toml"), &text), &[]);
+        assert_eq!(code, 78, "{new}: {out}");
+        assert!(out.contains(&format!("key `{key}`")), "{new}: {out}");
+    }
+}

@@ -194,9 +194,17 @@ impl LogConfig {
     }
 }
 
-/// A level or a `target=level,…` directive list, as the logger takes it.
+/// Not a level or a `target=level,…` list with a level in every directive. (The logger would
+/// take a bare word such as `loud` as a target name and log nothing at all.)
 fn tracing_subscriber_filter_is_invalid(level: &str) -> bool {
-    level.trim().is_empty() || tracing_subscriber::EnvFilter::try_new(level).is_err()
+    const LEVELS: &[&str] = &["off", "error", "warn", "info", "debug", "trace"];
+    let every_directive_has_a_level = level.split(',').all(|d| {
+        let lvl = d.rsplit_once('=').map_or(d, |(_, l)| l).trim();
+        LEVELS.contains(&lvl.to_ascii_lowercase().as_str())
+    });
+    level.trim().is_empty()
+        || !every_directive_has_a_level
+        || tracing_subscriber::EnvFilter::try_new(level).is_err()
 }
 
 /// `[supervision]`: how devices are reconnected and restarted, and when the daemon gives up on

@@ -86,7 +86,7 @@ async fn run(ctx: DeviceContext, settings: KtsSettings) {
             scan_command: settings.scan_command.clone(),
             // A replay ends where its recording does; silence there is not the reader's.
             silence_timeout: (!ctx.replaying()).then(|| {
-                Duration::from_secs_f64(settings.resync_after_s.max(0.1) / ctx.time_scale.max(1e-6))
+                crate::time::seconds(settings.resync_after_s.max(0.1) / ctx.time_scale.max(1e-6))
             }),
             ..KtsConfig::default()
         };

@@ -371,7 +371,7 @@ pub fn scaled_base_config(
     time_scale: f64,
 ) -> rfloc_aria::ClientConfig {
     rfloc_aria::ClientConfig {
-        pulse_period: Duration::from_secs_f64(pulse_period_s.max(0.05)),
+        pulse_period: crate::time::seconds(pulse_period_s.max(0.05)),
         clock: Some(clock),
         ..rfloc_aria::ClientConfig::default()
     }

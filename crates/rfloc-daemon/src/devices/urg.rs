@@ -123,7 +123,7 @@ pub fn scan_beams(scan: &Scan, geometry: &UrgGeometry, mount_offset_m: f64) -> V
 }
 
 async fn run(ctx: DeviceContext, settings: UrgSettings) {
-    let period = Duration::from_secs_f64(settings.scan_period_s / ctx.time_scale.max(1e-6));
+    let period = crate::time::seconds(settings.scan_period_s / ctx.time_scale.max(1e-6));
     let mut attempt = 0u32;
     while !ctx.stop.is_cancelled() {
         ctx.status(DeviceState::Connecting, "opening scanner").await;

@@ -364,7 +364,7 @@ async fn run(ctx: DeviceContext, settings: XbeeSettings) {
     };
     let mut requests = ctx.commands().await;
     let scan = scan_config(&ctx);
-    let nt = Duration::from_secs_f64(settings.discovery_timeout_s);
+    let nt = crate::time::seconds(settings.discovery_timeout_s);
     let mut source = Some(antenna);
     let mut rotator: Option<Antenna> = None;
     let mut attempt = 0u32;

@@ -17,7 +17,7 @@ use crate::events::{AntennaSide, DeviceEvent, DeviceState};
 const FAILED_POLLS_BEFORE_RECONNECT: u32 = 3;
 
 fn client_config(settings: &XbeeSettings, time_scale: f64) -> ClientConfig {
-    let scale = |d: Duration| Duration::from_secs_f64(d.as_secs_f64() / time_scale.max(1.0));
+    let scale = |d: Duration| crate::time::seconds(d.as_secs_f64() / time_scale.max(1.0));
     ClientConfig {
         mode: settings.mode(),
         nd_layout: NdLayoutHint::Auto,
@@ -38,7 +38,7 @@ pub(super) async fn run(ctx: DeviceContext, settings: XbeeSettings) {
         .await;
         return;
     };
-    let period = Duration::from_secs_f64(settings.poll_period_s / ctx.time_scale.max(1e-6));
+    let period = crate::time::seconds(settings.poll_period_s / ctx.time_scale.max(1e-6));
     let mut attempt = 0u32;
     while !ctx.stop.is_cancelled() {
         ctx.status(DeviceState::Connecting, "opening radio").await;

@@ -664,7 +664,7 @@ impl SimRuntime {
         let (Some((sensors, world)), Some(base)) = (self.sensors.clone(), self.base.clone()) else {
             return;
         };
-        let wall = Duration::from_secs_f64(period_s / self.config.time_scale.max(1e-6));
+        let wall = rfloc_daemon::time::seconds(period_s / self.config.time_scale.max(1e-6));
         tracing::info!(
             period_s,
             "simulated laser range finder (in-process, no wire protocol)"
@@ -715,7 +715,7 @@ fn drive(
     let scale = config.time_scale.max(1e-6);
     let motion = config.motion.clone();
     tokio::spawn(async move {
-        let wall = |sim_s: f64| Duration::from_secs_f64(sim_s / scale);
+        let wall = |sim_s: f64| rfloc_daemon::time::seconds(sim_s / scale);
         let send = |v: f64, w: f64| {
             let base = base.clone();
             async move {
