@@ -104,6 +104,9 @@ pub async fn run_with_pipeline(
         Some(p) => {
             let path = crate::config::resolve_credential(p, config_dir.as_deref())
                 .with_context(|| format!("pose token file {} not found", p.display()))?;
+            if let Some(w) = crate::config::secret_file_warning(&path) {
+                tracing::warn!("{w}");
+            }
             Some(crate::server::read_token(&path).map_err(anyhow::Error::msg)?)
         }
         None => None,
@@ -199,12 +202,14 @@ pub async fn run_with_pipeline(
     drop(ev_tx);
 
     // The estimator thread.
-    let order_log = match &capture_dir {
-        Some(dir) => {
-            Some(estimator::create_order_log(dir).context("creating the pipeline order log")?)
-        }
-        None => None,
-    };
+    // A recording that cannot be written (a full disk) does not stop the robot.
+    let order_log = capture_dir.as_ref().and_then(|dir| {
+        estimator::create_order_log(dir)
+            .map_err(|e| {
+                tracing::error!(error = %e, "pipeline order log not written: a replay will merge by stamp");
+            })
+            .ok()
+    });
     let worker = Worker {
         pipeline: Some(pipeline),
         format: PoseFormat {

@@ -240,16 +240,56 @@ fn numbers_out_of_range_are_configuration_errors() {
     let dir = tempfile::tempdir().unwrap();
     let sim = std::fs::read_to_string(workspace().join("config/sim.toml")).unwrap();
     let cases: &[(&str, &str, &str)] = &[
-        ("stale_after_s = 2.0", "stale_after_s = 1e300", "device[1].stale_after_s"),
-        ("duration_s = 40.0", "duration_s = -1", "simulation.duration_s"),
-        ("duration_s = 40.0", "duration_s = 1e300", "simulation.duration_s"),
-        ("stdout = true", "stdout = true\nprecision = 100000", "pose.precision"),
-        ("pulse_period_s = 0.5", "pulse_period_s = 1e300", "device[0].driver.pulse_period_s"),
-        ("pulse_period_s = 0.5", "pulse_period_s = inf", "device[0].driver.pulse_period_s"),
-        ("kind = \"kts\"", "kind = \"kts\"\nresync_after_s = 1e300", "device[1].driver.resync_after_s"),
-        ("stdout = true", "stdout = true\nclient_queue = 0", "pose.client_queue"),
-        ("time_scale = 5.0", "time_scale = nan", "simulation.time_scale"),
-        ("name = \"sim-agv\"", "name = \"sim-agv\"\n\n[log]\nlevel = \"loud\"", "log.level"),
+        (
+            "stale_after_s = 2.0",
+            "stale_after_s = 1e300",
+            "device[1].stale_after_s",
+        ),
+        (
+            "duration_s = 40.0",
+            "duration_s = -1",
+            "simulation.duration_s",
+        ),
+        (
+            "duration_s = 40.0",
+            "duration_s = 1e300",
+            "simulation.duration_s",
+        ),
+        (
+            "stdout = true",
+            "stdout = true\nprecision = 100000",
+            "pose.precision",
+        ),
+        (
+            "pulse_period_s = 0.5",
+            "pulse_period_s = 1e300",
+            "device[0].driver.pulse_period_s",
+        ),
+        (
+            "pulse_period_s = 0.5",
+            "pulse_period_s = inf",
+            "device[0].driver.pulse_period_s",
+        ),
+        (
+            "kind = \"kts\"",
+            "kind = \"kts\"\nresync_after_s = 1e300",
+            "device[1].driver.resync_after_s",
+        ),
+        (
+            "stdout = true",
+            "stdout = true\nclient_queue = 0",
+            "pose.client_queue",
+        ),
+        (
+            "time_scale = 5.0",
+            "time_scale = nan",
+            "simulation.time_scale",
+        ),
+        (
+            "name = \"sim-agv\"",
+            "name = \"sim-agv\"\n\n[log]\nlevel = \"loud\"",
+            "log.level",
+        ),
     ];
     for (i, (old, new, key)) in cases.iter().enumerate() {
         let text = sim.replacen(old, new, 1);

@@ -505,6 +505,21 @@ fn parse_driver<'i>(
     entry.parse(path, &diag::without(node, "kind"), diag)
 }
 
+/// A warning when a secret file (a password, a token) can be read by others than its owner and
+/// group; `None` when its permissions are right (or it came through systemd credentials).
+#[must_use]
+pub fn secret_file_warning(path: &Path) -> Option<String> {
+    use std::os::unix::fs::PermissionsExt;
+    let mode = std::fs::metadata(path).ok()?.permissions().mode();
+    (mode & 0o004 != 0).then(|| {
+        format!(
+            "{} is readable by every user (mode {:o}); make it 0600 or 0640, or hand it over with systemd LoadCredential=",
+            path.display(),
+            mode & 0o777
+        )
+    })
+}
+
 /// Finds a credential file: `$CREDENTIALS_DIRECTORY/<name>` first, then relative to the config.
 #[must_use]
 pub fn resolve_credential(path: &Path, base: Option<&Path>) -> Option<PathBuf> {
