@@ -11,8 +11,9 @@ use tracing::Instrument;
 
 use crate::error::{AlienError, SessionEnd};
 use crate::format_tracker::FormatTracker;
-use crate::framing::{Frame, Prompt, ReplyFramer};
+use crate::framing::{Frame, Prompt, ReplyFramer, MAX_FRAME_LEN};
 use crate::reader_time::format_reader_time;
+use crate::redact::Redactor;
 use crate::reply::{parse_reply, session_end, Reply};
 use crate::setup::ReaderSetup;
 use crate::snapshot::{RssiMeaning, Snapshot, SnapshotReader};
@@ -49,10 +50,17 @@ pub struct AlienConfig {
     pub password: String,
     pub prompt_mode: PromptMode,
     pub line_ending: LineEnding,
-    /// Longest wait for a reply (a `t` includes one read cycle).
+    /// Deadline of one exchange: from sending a command to its complete reply (and, in
+    /// interactive mode, the prompt after it). A `t` includes one read cycle. Bytes that arrive
+    /// without completing the reply do not extend it.
     pub reply_timeout: Duration,
-    /// Longest wait for the banner and each login step.
+    /// Deadline of the whole login: banner, `Username>`, both credentials and the outcome.
     pub login_timeout: Duration,
+    /// Longest wait for the session's connector to open a link.
+    pub connect_timeout: Duration,
+    /// Largest reply (or banner) kept, in bytes; a longer one is
+    /// [`AlienError::ReplyTooLong`].
+    pub max_reply_len: usize,
     /// Send a keepalive when idle this long (keep it well under `NetworkTimeout`).
     pub keepalive_interval: Duration,
     pub rssi_meaning: RssiMeaning,
@@ -67,6 +75,9 @@ impl std::fmt::Debug for AlienConfig {
             .field("prompt_mode", &self.prompt_mode)
             .field("line_ending", &self.line_ending)
             .field("reply_timeout", &self.reply_timeout)
+            .field("login_timeout", &self.login_timeout)
+            .field("connect_timeout", &self.connect_timeout)
+            .field("max_reply_len", &self.max_reply_len)
             .field("keepalive_interval", &self.keepalive_interval)
             .field("rssi_meaning", &self.rssi_meaning)
             .finish_non_exhaustive()
@@ -88,7 +99,9 @@ impl Default for AlienConfig {
             prompt_mode: PromptMode::Suppressed,
             line_ending: LineEnding::CrLf,
             reply_timeout: Duration::from_secs(5),
-            login_timeout: Duration::from_secs(5),
+            login_timeout: Duration::from_secs(10),
+            connect_timeout: Duration::from_secs(10),
+            max_reply_len: MAX_FRAME_LEN,
             keepalive_interval: Duration::from_secs(30),
             rssi_meaning: RssiMeaning::Linear,
             time_source: Arc::new(utc_now_text),
@@ -112,7 +125,6 @@ pub struct AlienStats {
 }
 
 /// An Alien reader session over `T` (a TCP stream in the daemon).
-#[derive(Debug)]
 pub struct AlienClient<T> {
     io: T,
     framer: ReplyFramer,
@@ -123,7 +135,49 @@ pub struct AlienClient<T> {
     clock: SharedClock,
     stats: AlienStats,
     last_io: Instant,
+    /// Bytes read since the current exchange began.
+    received: u64,
+    /// Takes the credentials out of reader text that becomes an error.
+    redactor: Redactor,
     span: tracing::Span,
+}
+
+/// Leaves out the bytes in flight: they may hold an echo of the password.
+impl<T> std::fmt::Debug for AlienClient<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("AlienClient")
+            .field("config", &self.config)
+            .field("format", self.format.format())
+            .field("echo", &self.echo.state())
+            .field("stats", &self.stats)
+            .finish_non_exhaustive()
+    }
+}
+
+/// When the current exchange must be complete.
+#[derive(Debug, Clone, Copy)]
+struct Deadline {
+    at: Instant,
+    budget: Duration,
+}
+
+impl Deadline {
+    fn after(budget: Duration) -> Self {
+        Self {
+            at: Instant::now() + budget,
+            budget,
+        }
+    }
+}
+
+/// What a frame read during the login means.
+enum LoginStep {
+    /// The step is answered: send the next credential (or, after the password, logged in).
+    Next,
+    /// Only an echo of a credential: keep reading.
+    Echo,
+    /// Logged in (a command prompt).
+    LoggedIn,
 }
 
 impl<T> AlienClient<T>
@@ -139,9 +193,10 @@ where
         config: AlienConfig,
         clock: SharedClock,
     ) -> Result<Self, AlienError> {
+        let redactor = Redactor::new([config.password.as_str()]);
         let mut c = Self {
             io,
-            framer: ReplyFramer::new(),
+            framer: ReplyFramer::with_limit(config.max_reply_len),
             frames: VecDeque::new(),
             config,
             format: FormatTracker::default(),
@@ -149,6 +204,8 @@ where
             clock,
             stats: AlienStats::default(),
             last_io: Instant::now(),
+            received: 0,
+            redactor,
             span: tracing::info_span!("alien"),
         };
         let span = c.span.clone();
@@ -183,26 +240,50 @@ where
         self.format.set_format(format);
     }
 
-    async fn next_frame(&mut self, timeout: Duration, what: &str) -> Result<Frame, AlienError> {
-        let deadline = Instant::now() + timeout;
+    fn timeout_error(&self, what: &str, deadline: Deadline) -> AlienError {
+        AlienError::Timeout {
+            what: what.to_string(),
+            after: deadline.budget,
+            received: self.received,
+        }
+    }
+
+    /// The next frame, or an error once `deadline` has passed (frames that arrive do not
+    /// extend it) or a frame is over the reply limit.
+    async fn next_frame(&mut self, deadline: Deadline, what: &str) -> Result<Frame, AlienError> {
         let mut buf = [0u8; 4096];
         loop {
             if let Some(f) = self.frames.pop_front() {
+                if let Frame::Overlong(_) = f {
+                    self.frames.clear();
+                    return Err(AlienError::ReplyTooLong {
+                        what: what.to_string(),
+                        limit: self.framer.limit(),
+                    });
+                }
                 return Ok(f);
             }
-            let n = tokio::time::timeout_at(deadline, self.io.read(&mut buf))
-                .await
-                .map_err(|_| AlienError::Timeout(what.to_string()))??;
+            let n = match tokio::time::timeout_at(deadline.at, self.io.read(&mut buf)).await {
+                Ok(read) => read?,
+                Err(_) => return Err(self.timeout_error(what, deadline)),
+            };
             if n == 0 {
                 return Err(AlienError::Session(SessionEnd::Closed));
             }
             self.last_io = Instant::now();
+            self.received += n as u64;
             let frames = self.framer.push(buf.get(..n).unwrap_or_default());
             self.frames.extend(frames);
         }
     }
 
-    async fn write_line(&mut self, text: &str, suppressed: bool) -> Result<(), AlienError> {
+    async fn write_line(
+        &mut self,
+        text: &str,
+        suppressed: bool,
+        deadline: Deadline,
+        what: &str,
+    ) -> Result<(), AlienError> {
         let mut bytes = Vec::with_capacity(text.len() + 3);
         if suppressed {
             bytes.push(0x01);
@@ -212,18 +293,30 @@ where
             LineEnding::CrLf => b"\r\n",
             LineEnding::Lf => b"\n",
         });
-        self.io.write_all(&bytes).await?;
-        self.io.flush().await?;
+        let io = &mut self.io;
+        let sent = tokio::time::timeout_at(deadline.at, async move {
+            io.write_all(&bytes).await?;
+            io.flush().await
+        })
+        .await;
+        match sent {
+            Ok(r) => r?,
+            Err(_) => return Err(self.timeout_error(what, deadline)),
+        }
         self.last_io = Instant::now();
         Ok(())
     }
 
-    /// Banner, `Username>`, `Password>` (reference §1.2 and §6 steps 1–3).
+    /// Banner, `Username>`, `Password>` (reference §1.2 and §6 steps 1–3), all within
+    /// `login_timeout`. Echoes of the credentials are skipped, and reader text that becomes an
+    /// error is redacted.
     async fn login(&mut self) -> Result<(), AlienError> {
-        let timeout = self.config.login_timeout;
+        const WHAT: &str = "login";
+        let deadline = Deadline::after(self.config.login_timeout);
+        self.received = 0;
         let suppressed = self.config.prompt_mode == PromptMode::Suppressed;
         loop {
-            match self.next_frame(timeout, "banner").await? {
+            match self.next_frame(deadline, WHAT).await? {
                 Frame::Prompt {
                     prompt: Prompt::Username,
                     ..
@@ -241,27 +334,75 @@ where
             }
         }
         let user = self.config.username.clone();
-        self.write_line(&user, suppressed).await?;
-        match self.next_frame(timeout, "username").await? {
-            Frame::Prompt {
-                prompt: Prompt::Password,
-                ..
-            } => {}
-            Frame::Reply(r) if r.trim().is_empty() => {}
-            other => return Err(AlienError::LoginFailed(frame_text(&other))),
+        self.write_line(&user, suppressed, deadline, WHAT).await?;
+        loop {
+            let frame = self.next_frame(deadline, WHAT).await?;
+            match self.login_step(&frame, false)? {
+                LoginStep::Next => break,
+                LoginStep::Echo => {}
+                LoginStep::LoggedIn => return Ok(()),
+            }
         }
         let pass = self.config.password.clone();
-        self.write_line(&pass, suppressed).await?;
-        match self.next_frame(timeout, "password").await? {
-            Frame::Prompt {
-                prompt: Prompt::Command,
-                ..
-            } => Ok(()),
-            Frame::Reply(r) if r.trim().is_empty() => {
-                // Some readers follow the empty reply with a prompt; it is skipped later.
-                Ok(())
+        self.write_line(&pass, suppressed, deadline, WHAT).await?;
+        loop {
+            let frame = self.next_frame(deadline, WHAT).await?;
+            match self.login_step(&frame, true)? {
+                LoginStep::Next | LoginStep::LoggedIn => return Ok(()),
+                LoginStep::Echo => {}
             }
-            other => Err(AlienError::LoginFailed(frame_text(&other))),
+        }
+    }
+
+    /// Classifies a frame read after sending the username (`after_password` false) or the
+    /// password.
+    fn login_step(&self, frame: &Frame, after_password: bool) -> Result<LoginStep, AlienError> {
+        let (text, prompt) = match frame {
+            Frame::Prompt { before, prompt } => (before.as_str(), Some(*prompt)),
+            Frame::Reply(text) => (text.as_str(), None),
+            Frame::Overlong(_) => ("", None),
+        };
+        let (rest, echoed) = strip_credential_echo(
+            text,
+            &[self.config.username.as_str(), self.config.password.as_str()],
+        );
+        // Everything below looks at reader text without the credentials in it.
+        let rest = self.redactor.redact(&rest);
+        if let Some(end) = session_end(&rest) {
+            return Err(AlienError::Session(end));
+        }
+        let refused = || {
+            let reason = self.redactor.clean(&rest);
+            AlienError::LoginFailed(if reason.is_empty() {
+                "the reader asked for the credentials again".to_string()
+            } else {
+                reason
+            })
+        };
+        let refusal = is_refusal(&rest);
+        match prompt {
+            Some(Prompt::Command) => Ok(LoginStep::LoggedIn),
+            Some(Prompt::Password) if !after_password && !refusal => Ok(LoginStep::Next),
+            Some(_) => Err(refused()),
+            None if refusal => Err(refused()),
+            None if rest.trim().is_empty() => {
+                // An empty reply answers the step (prompts suppressed). A bare echo does too
+                // with prompts suppressed, where the reply's NUL ends the echo's frame; in
+                // interactive mode the prompt that answers the step is still to come.
+                if echoed && self.config.prompt_mode == PromptMode::Interactive {
+                    Ok(LoginStep::Echo)
+                } else {
+                    Ok(LoginStep::Next)
+                }
+            }
+            None => Err(AlienError::Unexpected {
+                command: if after_password {
+                    "login (password)".into()
+                } else {
+                    "login (username)".into()
+                },
+                reply: self.redactor.clean(&rest),
+            }),
         }
     }
 
@@ -279,10 +420,11 @@ where
         tracing::debug!(command = cmd, "alien: send");
         let suppressed = self.config.prompt_mode == PromptMode::Suppressed;
         self.stats.commands += 1;
-        self.write_line(cmd, suppressed).await?;
-        let timeout = self.config.reply_timeout;
+        let deadline = Deadline::after(self.config.reply_timeout);
+        self.received = 0;
+        self.write_line(cmd, suppressed, deadline, cmd).await?;
         let body = loop {
-            match self.next_frame(timeout, cmd).await? {
+            match self.next_frame(deadline, cmd).await? {
                 Frame::Reply(body) => break body,
                 Frame::Prompt {
                     prompt: Prompt::Command,
@@ -293,16 +435,18 @@ where
                     }
                     self.stats.stray_frames += 1;
                 }
-                Frame::Prompt { before, .. } => {
+                Frame::Prompt { before, prompt } => {
                     return Err(AlienError::Unexpected {
                         command: cmd.to_string(),
-                        reply: before,
+                        reply: self
+                            .redactor
+                            .clean(&format!("{before}{}", prompt_text(prompt))),
                     })
                 }
-                Frame::Overlong(head) => {
-                    return Err(AlienError::Unexpected {
-                        command: cmd.to_string(),
-                        reply: String::from_utf8_lossy(&head).into_owned(),
+                Frame::Overlong(_) => {
+                    return Err(AlienError::ReplyTooLong {
+                        what: cmd.to_string(),
+                        limit: self.framer.limit(),
                     })
                 }
             }
@@ -311,7 +455,7 @@ where
             return Err(AlienError::Session(end));
         }
         if !suppressed {
-            match self.next_frame(timeout, cmd).await? {
+            match self.next_frame(deadline, cmd).await? {
                 Frame::Prompt {
                     prompt: Prompt::Command,
                     ..
@@ -328,6 +472,7 @@ where
         let body = self.echo.strip(&body, cmd);
         if let Reply::Error { code, text } = parse_reply(&body) {
             self.stats.reader_errors += 1;
+            let text = self.redactor.clean(&text);
             tracing::warn!(command = cmd, ?code, %text, "alien: reader error");
             return Err(AlienError::Reader {
                 command: cmd.to_string(),
@@ -350,7 +495,7 @@ where
             Reply::Value { value, .. } => Ok(value),
             _ => Err(AlienError::Unexpected {
                 command: cmd,
-                reply: body,
+                reply: self.redactor.clean(&body),
             }),
         }
     }
@@ -366,7 +511,7 @@ where
             Reply::Value { value, .. } => Ok(value),
             _ => Err(AlienError::Unexpected {
                 command: cmd,
-                reply: body,
+                reply: self.redactor.clean(&body),
             }),
         }
     }
@@ -427,30 +572,36 @@ where
             Err(e) => Err(e),
             Ok(body) => Err(AlienError::Unexpected {
                 command: "quit".into(),
-                reply: body,
+                reply: self.redactor.clean(&body),
             }),
         }
     }
 
     /// Waits up to `timeout` for unsolicited output (e.g. `Connection Timeout.`).
-    /// `Ok(None)`: nothing arrived. `Ok(Some(text))`: other text.
+    /// `Ok(None)`: nothing complete arrived. `Ok(Some(text))`: other text, redacted and made
+    /// printable as error text is.
     ///
     /// # Errors
-    /// [`AlienError::Session`] when the reader ended the session.
+    /// [`AlienError::Session`] when the reader ended the session;
+    /// [`AlienError::ReplyTooLong`], I/O.
     pub async fn next_unsolicited(
         &mut self,
         timeout: Duration,
     ) -> Result<Option<String>, AlienError> {
-        match self.next_frame(timeout, "unsolicited").await {
+        self.received = 0;
+        match self
+            .next_frame(Deadline::after(timeout), "unsolicited")
+            .await
+        {
             Ok(f) => {
                 let text = frame_text(&f);
                 if let Some(end) = session_end(&text) {
                     return Err(AlienError::Session(end));
                 }
                 self.stats.stray_frames += 1;
-                Ok(Some(text))
+                Ok(Some(self.redactor.clean(&text)))
             }
-            Err(AlienError::Timeout(_)) => Ok(None),
+            Err(AlienError::Timeout { .. }) => Ok(None),
             Err(e) => Err(e),
         }
     }
@@ -471,12 +622,54 @@ where
     }
 }
 
+fn prompt_text(p: Prompt) -> &'static str {
+    match p {
+        Prompt::Username => "Username>",
+        Prompt::Password => "Password>",
+        Prompt::Command => "Alien>",
+    }
+}
+
 fn frame_text(f: &Frame) -> String {
     match f {
-        Frame::Prompt { before, prompt } => format!("{}{prompt:?}>", before.trim()),
+        Frame::Prompt { before, prompt } => format!("{}{}", before.trim(), prompt_text(*prompt)),
         Frame::Reply(r) => r.trim().to_string(),
         Frame::Overlong(h) => String::from_utf8_lossy(h).into_owned(),
     }
+}
+
+/// `text` without the lines that are an echo of a credential (the line as sent: with or without
+/// the `\x01`, any line end), and whether there were any.
+fn strip_credential_echo(text: &str, credentials: &[&str]) -> (String, bool) {
+    let mut echoed = false;
+    let mut rest = String::new();
+    for line in text.split_inclusive(['\r', '\n']) {
+        let bare = line.trim_matches(|c: char| c == '\x01' || c.is_ascii_whitespace());
+        if !bare.is_empty() && credentials.iter().any(|c| !c.is_empty() && bare == *c) {
+            echoed = true;
+        } else {
+            rest.push_str(line);
+        }
+    }
+    (rest, echoed)
+}
+
+/// Reader text that refuses a login: an `Error` line, or words of refusal.
+fn is_refusal(text: &str) -> bool {
+    let lower = text.to_ascii_lowercase();
+    lower.lines().any(|l| {
+        l.trim_start_matches(['\x01', ' ', '\t'])
+            .starts_with("error")
+    }) || [
+        "invalid",
+        "denied",
+        "incorrect",
+        "refused",
+        "failed",
+        "wrong",
+    ]
+    .iter()
+    .any(|w| lower.contains(w))
 }
 
 /// Whether the reader echoes commands, as learned from the replies so far.

@@ -53,6 +53,10 @@ pub struct EmulatorOptions {
     pub clock: Option<SharedClock>,
     /// Echo of command lines.
     pub echo: EchoMode,
+    /// Echo the username and password lines as received (`\x01` included), before the answer
+    /// to each: a terminal server with echo on. A client must keep the password out of its
+    /// errors.
+    pub echo_login: bool,
 }
 
 impl Default for EmulatorOptions {
@@ -64,6 +68,7 @@ impl Default for EmulatorOptions {
             busy_when_occupied: false,
             clock: None,
             echo: EchoMode::default(),
+            echo_login: false,
         }
     }
 }
@@ -303,12 +308,18 @@ impl ReaderEmulator {
                 return Ok(());
             };
             let suppressed = user.starts_with('\x01');
+            if self.options.echo_login {
+                s.write_all(format!("{user}\r\n").as_bytes()).await?;
+            }
             s.write_all(if suppressed { b"\0" } else { b"Password>\0" })
                 .await?;
             s.flush().await?;
             let Some(pass) = lines.next(&mut s, self.idle_limit()).await? else {
                 return Ok(());
             };
+            if self.options.echo_login {
+                s.write_all(format!("{pass}\r\n").as_bytes()).await?;
+            }
             let ok = user.trim_start_matches('\x01') == self.options.username
                 && pass.trim_start_matches('\x01') == self.options.password;
             if ok {

@@ -1,4 +1,10 @@
 //! Errors of the Alien client.
+//!
+//! Reader text in an error (`Reader::text`, `Unexpected::reply`, `LoginFailed`, `AuthFailed::
+//! reason`) has passed through the client's redactor: it holds neither the password nor an echo
+//! of it, and no control characters (see `redact.rs`).
+
+use std::time::Duration;
 
 /// Why the reader ended (or refused) a session.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -37,15 +43,35 @@ pub enum AlienError {
         code: Option<u32>,
         text: String,
     },
-    /// Username/password refused.
-    #[error("login refused: {0}")]
+    /// The reader refused the username or password: an authentication failure. Dialling again
+    /// at once will not help and may lock the account. The text is the reader's reason,
+    /// redacted.
+    #[error("login refused by the reader (authentication failure): {0}")]
     LoginFailed(String),
+    /// [`AlienSession`](crate::AlienSession): the login was refused `failures` times in a row;
+    /// the session dials again no sooner than `retry_in` from now.
+    #[error(
+        "authentication failed ({failures} refusal(s) in a row): {reason}; next login attempt in {retry_in:?}"
+    )]
+    AuthFailed {
+        failures: u32,
+        reason: String,
+        retry_in: Duration,
+    },
     /// The session ended or was refused.
     #[error("session ended: {0}")]
     Session(SessionEnd),
-    /// No complete reply in time.
-    #[error("no reply to {0:?} in time")]
-    Timeout(String),
+    /// The exchange (`what`: a command, `login`, `connect`) did not complete within `after`;
+    /// `received` bytes came in meanwhile without forming the awaited reply.
+    #[error("no complete reply to {what:?} within {after:?} ({received} bytes received)")]
+    Timeout {
+        what: String,
+        after: Duration,
+        received: u64,
+    },
+    /// A reply (or banner) longer than the client's `max_reply_len`.
+    #[error("reply to {what:?} longer than {limit} bytes")]
+    ReplyTooLong { what: String, limit: usize },
     /// A reply of an unexpected shape (e.g. `get` without `=`).
     #[error("unexpected reply to {command:?}: {reply:?}")]
     Unexpected { command: String, reply: String },
@@ -65,7 +91,29 @@ impl AlienError {
     pub fn needs_reconnect(&self) -> bool {
         matches!(
             self,
-            AlienError::Session(_) | AlienError::Io(_) | AlienError::Timeout(_)
+            AlienError::Session(_)
+                | AlienError::Io(_)
+                | AlienError::Timeout { .. }
+                | AlienError::ReplyTooLong { .. }
         )
+    }
+
+    /// True when the reader refused the credentials ([`AlienError::LoginFailed`],
+    /// [`AlienError::AuthFailed`]): a configuration problem, not a link problem.
+    #[must_use]
+    pub fn is_auth_failure(&self) -> bool {
+        matches!(
+            self,
+            AlienError::LoginFailed(_) | AlienError::AuthFailed { .. }
+        )
+    }
+
+    /// For [`AlienError::AuthFailed`]: how long the session waits before it logs in again.
+    #[must_use]
+    pub fn retry_in(&self) -> Option<Duration> {
+        match self {
+            AlienError::AuthFailed { retry_in, .. } => Some(*retry_in),
+            _ => None,
+        }
     }
 }

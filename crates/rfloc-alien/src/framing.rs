@@ -5,7 +5,7 @@
 //! without a NUL (emulators differ). A frame ending in a prompt word is emitted as soon as the
 //! prompt is complete; a NUL right after such a prompt is swallowed.
 
-/// Largest frame kept; a 1000-tag Text list is ~100 kB.
+/// Largest frame kept by default; a 1000-tag Text list is ~100 kB.
 pub const MAX_FRAME_LEN: usize = 1 << 20;
 
 /// A prompt the reader prints.
@@ -25,17 +25,25 @@ pub enum Frame {
     /// A NUL-terminated reply body (may be empty: the answer to an empty command or a
     /// prompt-suppressed login step).
     Reply(String),
-    /// A frame longer than [`MAX_FRAME_LEN`]; its first bytes.
+    /// A frame longer than the framer's limit ([`MAX_FRAME_LEN`] unless set); its first bytes.
+    /// The rest of it, up to its NUL, is dropped.
     Overlong(Vec<u8>),
 }
 
-/// Accumulates bytes into frames.
-#[derive(Debug, Default, Clone)]
+/// Accumulates bytes into frames. It never holds more than its limit of an unfinished frame.
+#[derive(Debug, Clone)]
 pub struct ReplyFramer {
     buf: Vec<u8>,
+    limit: usize,
     swallow_nul: bool,
     overflowing: bool,
     dropped_bytes: u64,
+}
+
+impl Default for ReplyFramer {
+    fn default() -> Self {
+        Self::with_limit(MAX_FRAME_LEN)
+    }
 }
 
 fn prompt_at_end(buf: &[u8]) -> Option<(Prompt, usize)> {
@@ -58,9 +66,29 @@ fn prompt_at_end(buf: &[u8]) -> Option<(Prompt, usize)> {
 }
 
 impl ReplyFramer {
+    /// A framer with the default limit, [`MAX_FRAME_LEN`].
     #[must_use]
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// A framer that keeps frames of at most `limit` bytes (at least 1); a longer one becomes
+    /// [`Frame::Overlong`].
+    #[must_use]
+    pub fn with_limit(limit: usize) -> Self {
+        Self {
+            buf: Vec::new(),
+            limit: limit.max(1),
+            swallow_nul: false,
+            overflowing: false,
+            dropped_bytes: 0,
+        }
+    }
+
+    /// The longest frame kept, in bytes.
+    #[must_use]
+    pub fn limit(&self) -> usize {
+        self.limit
     }
 
     /// Feeds bytes; returns the frames they completed.
@@ -86,12 +114,12 @@ impl ReplyFramer {
                 continue;
             }
             self.buf.push(b);
-            if self.buf.len() > MAX_FRAME_LEN {
+            if self.buf.len() > self.limit {
                 self.overflowing = true;
                 self.dropped_bytes += self.buf.len() as u64;
                 let head = self.buf.iter().take(80).copied().collect();
                 self.buf.clear();
-                tracing::warn!("alien: reply frame over {MAX_FRAME_LEN} bytes dropped");
+                tracing::warn!(limit = self.limit, "alien: overlong reply frame dropped");
                 out.push(Frame::Overlong(head));
                 continue;
             }
@@ -166,6 +194,20 @@ mod tests {
                 }
             ]
         );
+    }
+
+    #[test]
+    fn a_frame_over_the_limit_is_overlong_and_never_held_whole() {
+        let mut f = ReplyFramer::with_limit(16);
+        let mut out = Vec::new();
+        for chunk in [&b"0123456789"[..], b"abcdefghij", b"KLMNOPQRST"] {
+            out.extend(f.push(chunk));
+            assert!(f.pending().len() <= 16, "{}", f.pending().len());
+        }
+        assert_eq!(out, vec![Frame::Overlong(b"0123456789abcdefg".to_vec())]);
+        // The rest of the long frame is dropped up to its NUL; the next frame is whole.
+        assert_eq!(f.push(b"UVW\0ok\0"), vec![Frame::Reply("ok".into())]);
+        assert_eq!(f.dropped_bytes(), 17 + 3 + 10 + 3);
     }
 
     #[test]

@@ -25,6 +25,7 @@ mod error;
 mod format_tracker;
 mod framing;
 mod reader_time;
+mod redact;
 mod reply;
 mod session;
 mod setup;

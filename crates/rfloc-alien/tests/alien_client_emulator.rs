@@ -153,6 +153,41 @@ async fn wrong_password_is_refused() {
     }
 }
 
+/// An emulator that echoes the credentials (a terminal with echo on): the right ones log in in
+/// both modes, wrong ones are refused without the password in the error.
+#[tokio::test]
+async fn echoed_login_lines_are_skipped_and_never_reported() {
+    let (_emu, addr, _tags) = emulator(EmulatorOptions {
+        echo_login: true,
+        ..EmulatorOptions::default()
+    })
+    .await;
+    for mode in [PromptMode::Suppressed, PromptMode::Interactive] {
+        let config = AlienConfig {
+            prompt_mode: mode,
+            ..AlienConfig::default()
+        };
+        let mut c = connect(addr, config).await.unwrap();
+        assert_field(&c.read_snapshot().await.unwrap().tags, false);
+        assert!(!format!("{c:?}").contains("password"), "{c:?}");
+
+        let wrong = "Wr0ng-Secret";
+        let config = AlienConfig {
+            password: wrong.into(),
+            prompt_mode: mode,
+            ..AlienConfig::default()
+        };
+        let err = connect(addr, config).await.map(|_| ()).unwrap_err();
+        assert!(err.is_auth_failure(), "{mode:?}: {err:?}");
+        let (display, debug) = (err.to_string(), format!("{err:?}"));
+        assert!(display.contains("Invalid"), "{display}");
+        assert!(
+            !display.contains(wrong) && !debug.contains(wrong),
+            "{debug}"
+        );
+    }
+}
+
 #[tokio::test]
 async fn second_client_is_told_busy() {
     let (_emu, addr, _tags) = emulator(EmulatorOptions {
@@ -205,6 +240,7 @@ async fn session_reconnects_and_reapplies_setup() {
         initial: Duration::from_millis(20),
         max: Duration::from_millis(100),
         max_attempts: 5,
+        ..Backoff::default()
     };
     let mut session = AlienSession::new(
         connector,
@@ -235,6 +271,7 @@ async fn session_gives_up_after_backoff() {
         initial: Duration::from_millis(5),
         max: Duration::from_millis(10),
         max_attempts: 3,
+        ..Backoff::default()
     };
     let mut session = AlienSession::new(
         connector,

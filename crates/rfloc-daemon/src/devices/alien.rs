@@ -182,13 +182,16 @@ async fn run(ctx: DeviceContext, settings: AlienSettings) {
                 .map_err(|e| std::io::Error::other(format!("{e:#}")))
         })
     });
+    // Jitter seeded by the device's name: readers of one robot do not retry in step.
+    let name = ctx.device.name.clone();
     let mut session = AlienSession::new(
         connector,
         config,
         ReaderSetup::project(),
         ctx.clock.clone(),
-        Backoff::default(),
-    );
+        Backoff::default().with_seed_from(&name),
+    )
+    .with_auth_backoff(Backoff::authentication().with_seed_from(&name));
     let period = Duration::from_secs_f64(POLL_PERIOD_S / ctx.time_scale.max(1e-6));
     // A replay averages as many reads per snapshot as the recording marks.
     let mut recorded_reads: std::collections::VecDeque<usize> = ctx
@@ -233,9 +236,16 @@ async fn run(ctx: DeviceContext, settings: AlienSettings) {
                 ctx.status(DeviceState::Closed, "end of recording").await;
                 return;
             }
-            tracing::warn!(error = %e, "UHF read failed; the session reconnects");
             connected = false;
-            ctx.status(DeviceState::Reconnecting, e.to_string()).await;
+            // Error text from the session is redacted (no password, no control characters).
+            if e.is_auth_failure() {
+                // The session waits out its authentication back-off before the next login.
+                tracing::error!(error = %e, "UHF reader refused the login");
+                ctx.status(DeviceState::Closed, e.to_string()).await;
+            } else {
+                tracing::warn!(error = %e, "UHF read failed; the session reconnects");
+                ctx.status(DeviceState::Reconnecting, e.to_string()).await;
+            }
             if !pause(&ctx, period).await {
                 return;
             }
