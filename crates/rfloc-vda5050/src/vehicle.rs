@@ -564,12 +564,7 @@ impl Vehicle {
         let node_actions = order.nodes.iter().flat_map(|n| n.actions.iter());
         let edge_actions = order.edges.iter().flat_map(|e| e.actions.iter());
         for action in node_actions.chain(edge_actions) {
-            if !self
-                .config
-                .order_action_types
-                .iter()
-                .any(|t| *t == action.action_type)
-            {
+            if !self.config.order_action_types.contains(&action.action_type) {
                 return Err(Self::reject(
                     ErrorKind::Order,
                     order,

@@ -1,5 +1,6 @@
 //! Parsing the input topics: malformed JSON, wrong version, missing fields and random bytes
 //! give a VDA 5050 `validationError`, never a panic.
+#![allow(clippy::unwrap_used)] // helpers and proptest bodies outside #[test] fns
 
 mod common;
 
@@ -19,7 +20,14 @@ fn malformed_inputs_are_validation_errors() {
     assert_eq!(kind(b"null"), ErrorKind::Validation);
     assert_eq!(kind(b"[1,2]"), ErrorKind::Validation);
     assert_eq!(kind(b"{\"orderId\": \"o1\""), ErrorKind::Validation);
-    for field in ["headerId", "timestamp", "version", "orderId", "nodes", "edges"] {
+    for field in [
+        "headerId",
+        "timestamp",
+        "version",
+        "orderId",
+        "nodes",
+        "edges",
+    ] {
         let mut o = order_json();
         o.as_object_mut().unwrap().remove(field);
         let e = parse_order(&serde_json::to_vec(&o).unwrap()).unwrap_err();
@@ -28,13 +36,23 @@ fn malformed_inputs_are_validation_errors() {
     }
     let mut o = order_json();
     o["nodes"][0].as_object_mut().unwrap().remove("actions");
-    assert_eq!(kind(&serde_json::to_vec(&o).unwrap()), ErrorKind::Validation);
+    assert_eq!(
+        kind(&serde_json::to_vec(&o).unwrap()),
+        ErrorKind::Validation
+    );
     let mut o = order_json();
     o["orderUpdateId"] = json!(-1);
-    assert_eq!(kind(&serde_json::to_vec(&o).unwrap()), ErrorKind::Validation);
+    assert_eq!(
+        kind(&serde_json::to_vec(&o).unwrap()),
+        ErrorKind::Validation
+    );
     let mut o = order_json();
-    o["nodes"][1]["actions"] = json!([{"actionType": "x", "actionId": "1", "blockingType": "SOMETIMES"}]);
-    assert_eq!(kind(&serde_json::to_vec(&o).unwrap()), ErrorKind::Validation);
+    o["nodes"][1]["actions"] =
+        json!([{"actionType": "x", "actionId": "1", "blockingType": "SOMETIMES"}]);
+    assert_eq!(
+        kind(&serde_json::to_vec(&o).unwrap()),
+        ErrorKind::Validation
+    );
     for version in ["1.1.0", "3.0.0", "", "two"] {
         let mut o = order_json();
         o["version"] = json!(version);
@@ -46,16 +64,27 @@ fn malformed_inputs_are_validation_errors() {
     }
     let mut o = order_json();
     o["timestamp"] = json!("15.04.2017 11:40");
-    assert_eq!(kind(&serde_json::to_vec(&o).unwrap()), ErrorKind::Validation);
+    assert_eq!(
+        kind(&serde_json::to_vec(&o).unwrap()),
+        ErrorKind::Validation
+    );
     // Duplicate action ids across nodes.
     let mut o = order_json();
-    o["nodes"][0]["actions"] = json!([{"actionType": "x", "actionId": "1", "blockingType": "NONE"}]);
-    o["nodes"][1]["actions"] = json!([{"actionType": "y", "actionId": "1", "blockingType": "NONE"}]);
-    assert_eq!(kind(&serde_json::to_vec(&o).unwrap()), ErrorKind::Validation);
+    o["nodes"][0]["actions"] =
+        json!([{"actionType": "x", "actionId": "1", "blockingType": "NONE"}]);
+    o["nodes"][1]["actions"] =
+        json!([{"actionType": "y", "actionId": "1", "blockingType": "NONE"}]);
+    assert_eq!(
+        kind(&serde_json::to_vec(&o).unwrap()),
+        ErrorKind::Validation
+    );
     // Odd node sequence id.
     let mut o = order_json();
     o["nodes"][0]["sequenceId"] = json!(1);
-    assert_eq!(kind(&serde_json::to_vec(&o).unwrap()), ErrorKind::Validation);
+    assert_eq!(
+        kind(&serde_json::to_vec(&o).unwrap()),
+        ErrorKind::Validation
+    );
     // The unchanged order parses.
     assert!(parse_order(&serde_json::to_vec(&order_json()).unwrap()).is_ok());
 
@@ -68,7 +97,10 @@ fn malformed_inputs_are_validation_errors() {
     bad.as_object_mut().unwrap().remove("actions");
     assert_eq!(ia(bad).unwrap_err().kind, ErrorKind::Validation);
     let mut bad = good.clone();
-    bad["actions"][0].as_object_mut().unwrap().remove("blockingType");
+    bad["actions"][0]
+        .as_object_mut()
+        .unwrap()
+        .remove("blockingType");
     assert_eq!(ia(bad).unwrap_err().kind, ErrorKind::Validation);
     let mut bad = good;
     bad["version"] = json!("3.0.0");

@@ -1,6 +1,7 @@
 //! Every message the crate produces validates against the 2.1.0 JSON schemas in `schemas/`; the
 //! schemas themselves are well-formed and reject broken messages; byte-exact known answers;
 //! random valid messages survive serialize → validate → deserialize unchanged.
+#![allow(clippy::unwrap_used)] // helpers and proptest bodies outside #[test] fns
 
 mod common;
 
@@ -223,7 +224,8 @@ fn schemas_reject_broken_messages() {
     o["edges"][0].as_object_mut().unwrap().remove("actions");
     assert!(invalid("order", &o));
     let mut o = order;
-    o["nodes"][0]["actions"] = json!([{"actionType": "x", "actionId": "1", "blockingType": "MAYBE"}]);
+    o["nodes"][0]["actions"] =
+        json!([{"actionType": "x", "actionId": "1", "blockingType": "MAYBE"}]);
     assert!(invalid("order", &o));
     let c = json!({"headerId": 1, "timestamp": "2024-01-01T00:00:00.000Z", "version": "2.1.0",
         "manufacturer": "m", "serialNumber": "s", "connectionState": "DISCONNECTED"});
@@ -268,7 +270,11 @@ fn order_known_bytes_parse() {
     assert_eq!(o.header.header_id, 7);
     assert_eq!(o.order_id, "1234");
     assert_eq!(
-        o.nodes[0].node_position.as_ref().unwrap().allowed_deviation_xy,
+        o.nodes[0]
+            .node_position
+            .as_ref()
+            .unwrap()
+            .allowed_deviation_xy,
         Some(0.5)
     );
     assert_eq!(o.nodes[1].actions[0].blocking_type, BlockingType::Soft);

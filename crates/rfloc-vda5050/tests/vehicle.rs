@@ -1,5 +1,6 @@
 //! The vehicle state machine: orders, updates, rejections, driving progress, instant actions,
 //! errors and the publishing policy.
+#![allow(clippy::unwrap_used)] // helpers and proptest bodies outside #[test] fns
 
 mod common;
 
@@ -71,7 +72,10 @@ fn new_order_is_driven_node_by_node() {
     );
     assert_eq!(edge_ids(&s), vec!["eab", "ebc"]);
     let target = v.next_target().unwrap();
-    assert_eq!((target.node_id.as_str(), target.x, target.y), ("b", 1.0, 0.0));
+    assert_eq!(
+        (target.node_id.as_str(), target.x, target.y),
+        ("b", 1.0, 0.0)
+    );
     assert_eq!(target.edge_id, "eab");
     assert_eq!(target.allowed_deviation_xy, 0.25);
 
@@ -204,7 +208,10 @@ fn update_while_driving_stitches_at_the_last_base_node() {
     let right = line_order("o1", 1, &["c", "d", "e"], 4, 2.0, 3);
     assert_eq!(v.accept_order(right, t(3)), Ok(OrderAcceptance::Updated));
     let s = v.state(t(3));
-    assert!(s.errors.is_empty(), "rejection cleared by the accepted update");
+    assert!(
+        s.errors.is_empty(),
+        "rejection cleared by the accepted update"
+    );
     assert_eq!(
         node_ids(&s),
         vec![
@@ -573,7 +580,11 @@ fn init_position_is_carried_out_by_the_caller() {
     .unwrap();
     v.finish_init_position(Err("scan does not match the map".to_owned()), t(6));
     let s = v.state(t(6));
-    let i3 = s.action_states.iter().find(|a| a.action_id == "i3").unwrap();
+    let i3 = s
+        .action_states
+        .iter()
+        .find(|a| a.action_id == "i3")
+        .unwrap();
     assert_eq!(i3.action_status, ActionStatus::Failed);
     assert_eq!(
         i3.result_description.as_deref(),
@@ -657,7 +668,10 @@ fn node_and_edge_actions_follow_blocking_types() {
     assert!(v.set_action_status("h1", ActionStatus::Running, None));
     assert!(v.actions_to_start().is_empty());
     assert!(v.set_action_status("h1", ActionStatus::Finished, Some("up".to_owned())));
-    assert!(!v.set_action_status("h1", ActionStatus::Running, None), "terminal");
+    assert!(
+        !v.set_action_status("h1", ActionStatus::Running, None),
+        "terminal"
+    );
     assert!(!v.set_action_status("nope", ActionStatus::Running, None));
     let ids: Vec<String> = v
         .actions_to_start()
@@ -706,7 +720,10 @@ fn device_errors_and_fatal_errors() {
     assert!(v.publish_due(t(2)));
     let s = v.state(t(2));
     assert_eq!(error_types(&s), vec!["sensorStale"]);
-    assert!(v.next_target().is_some(), "a WARNING does not stop the vehicle");
+    assert!(
+        v.next_target().is_some(),
+        "a WARNING does not stop the vehicle"
+    );
     v.add_error(stale(ErrorLevel::Warning));
     assert!(!v.publish_due(t(3)), "the same error again is no change");
     v.add_error(stale(ErrorLevel::Fatal));
@@ -798,9 +815,7 @@ fn rate_limiter_caps_visualization() {
 #[test]
 fn pose_reports_are_checked() {
     let mut v = Vehicle::new(config());
-    assert!(v
-        .update_pose(pose(f64::NAN, 0.0, 0.0, 0.0), t(0))
-        .is_err());
+    assert!(v.update_pose(pose(f64::NAN, 0.0, 0.0, 0.0), t(0)).is_err());
     let mut p = pose(0.0, 0.0, 0.0, 0.0);
     p.localization_score = Some(1.2);
     assert!(v.update_pose(p, t(0)).is_err());

@@ -1,5 +1,5 @@
 //! Helpers shared by the integration tests: schema validators, sample messages, generators.
-#![allow(dead_code)]
+#![allow(dead_code, clippy::unwrap_used)] // shared helpers outside #[test] fns
 
 use std::f64::consts::PI;
 
@@ -320,7 +320,10 @@ pub fn actions(prefix: String) -> impl Strategy<Value = Vec<Action>> {
             id_string(),
             proptest::option::of(text()),
             blocking(),
-            proptest::option::of(proptest::collection::vec((id_string(), param_value()), 0..3)),
+            proptest::option::of(proptest::collection::vec(
+                (id_string(), param_value()),
+                0..3,
+            )),
         ),
         0..3,
     )
@@ -410,27 +413,29 @@ pub fn valid_order() -> impl Strategy<Value = Order> {
                         proptest::option::of((0.0..2.0f64, 0.0..2.0f64)),
                         actions(format!("e{i}-")),
                     )
-                        .prop_map(move |(eid, speed, orient, otype, rot, traj, corr, acts)| {
-                            let mut e = edge(
-                                &eid,
-                                2 * (start + i as u32) + 1,
-                                i + 1 < released,
-                                &from,
-                                &to,
-                            );
-                            e.max_speed = speed;
-                            e.orientation = orient;
-                            e.orientation_type = otype;
-                            e.rotation_allowed = rot;
-                            e.trajectory = traj;
-                            e.corridor = corr.map(|(l, r)| Corridor {
-                                left_width: l,
-                                right_width: r,
-                                corridor_ref_point: Some(CorridorRefPoint::Kinematiccenter),
-                            });
-                            e.actions = acts;
-                            e
-                        })
+                        .prop_map(
+                            move |(eid, speed, orient, otype, rot, traj, corr, acts)| {
+                                let mut e = edge(
+                                    &eid,
+                                    2 * (start + i as u32) + 1,
+                                    i + 1 < released,
+                                    &from,
+                                    &to,
+                                );
+                                e.max_speed = speed;
+                                e.orientation = orient;
+                                e.orientation_type = otype;
+                                e.rotation_allowed = rot;
+                                e.trajectory = traj;
+                                e.corridor = corr.map(|(l, r)| Corridor {
+                                    left_width: l,
+                                    right_width: r,
+                                    corridor_ref_point: Some(CorridorRefPoint::Kinematiccenter),
+                                });
+                                e.actions = acts;
+                                e
+                            },
+                        )
                 })
                 .collect::<Vec<_>>();
             (nodes, edges).prop_map(move |(nodes, edges)| Order {
@@ -462,16 +467,18 @@ pub fn agv_position() -> impl Strategy<Value = AgvPosition> {
         proptest::option::of(0.0..=1.0f64),
         proptest::option::of(0.0..100.0f64),
     )
-        .prop_map(|(x, y, theta, map_id, desc, init, score, dev)| AgvPosition {
-            x,
-            y,
-            theta,
-            map_id,
-            map_description: desc,
-            position_initialized: init,
-            localization_score: score,
-            deviation_range: dev,
-        })
+        .prop_map(
+            |(x, y, theta, map_id, desc, init, score, dev)| AgvPosition {
+                x,
+                y,
+                theta,
+                map_id,
+                map_description: desc,
+                position_initialized: init,
+                localization_score: score,
+                deviation_range: dev,
+            },
+        )
 }
 
 pub fn velocity() -> impl Strategy<Value = Velocity> {
@@ -498,8 +505,13 @@ pub fn any_state() -> impl Strategy<Value = State> {
     let order_part = (
         any_header(),
         proptest::option::of(proptest::collection::vec(
-            (id_string(), id_string(), proptest::option::of(text()), any::<bool>()).prop_map(
-                |(map_id, map_version, d, on)| MapInfo {
+            (
+                id_string(),
+                id_string(),
+                proptest::option::of(text()),
+                any::<bool>(),
+            )
+                .prop_map(|(map_id, map_version, d, on)| MapInfo {
                     map_id,
                     map_version,
                     map_description: d,
@@ -508,8 +520,7 @@ pub fn any_state() -> impl Strategy<Value = State> {
                     } else {
                         MapStatus::Disabled
                     },
-                },
-            ),
+                }),
             0..2,
         )),
         "[A-Za-z0-9_.:-]{0,8}",
@@ -648,8 +659,13 @@ pub fn any_state() -> impl Strategy<Value = State> {
             0..3,
         ),
         proptest::option::of(proptest::collection::vec(
-            (id_string(), references(), proptest::option::of(text()), any::<bool>()).prop_map(
-                |(info_type, r, d, debug)| Info {
+            (
+                id_string(),
+                references(),
+                proptest::option::of(text()),
+                any::<bool>(),
+            )
+                .prop_map(|(info_type, r, d, debug)| Info {
                     info_type,
                     info_references: r,
                     info_description: d,
@@ -658,8 +674,7 @@ pub fn any_state() -> impl Strategy<Value = State> {
                     } else {
                         InfoLevel::Info
                     },
-                },
-            ),
+                }),
             0..2,
         )),
         (
