@@ -10,6 +10,11 @@ use crate::error::{ErrorKind, Vda5050Error};
 use crate::messages::{Action, Header, InstantActions, Order, Reference, PROTOCOL_MAJOR};
 use crate::time::is_valid_timestamp_text;
 
+/// Largest |angle| accepted for `theta`, `orientation` and `allowedDeviationTheta`: π + 1e-12,
+/// which holds π rounded up to 11 decimals (`3.14159265359`, the bound the published schemas
+/// use), so that a master control sending that for π is not rejected.
+pub const ANGLE_LIMIT: f64 = std::f64::consts::PI + 1e-12;
+
 fn validation(description: impl Into<String>) -> Vda5050Error {
     Vda5050Error::new(ErrorKind::Validation, description)
 }
@@ -113,10 +118,10 @@ fn check_action(action: &Action, ids: &mut HashSet<String>) -> Result<(), String
 /// * the first node released; released nodes and edges form a prefix (the base), and an edge is
 ///   released only if both its nodes are;
 /// * node positions finite, `theta` and edge `orientation` in [−π, π], `allowedDeviationXY` ≥ 0,
-///   `allowedDeviationTheta` in [0, π], `maxSpeed` etc. finite;
+///   `allowedDeviationTheta` in [0, π] (π as [`ANGLE_LIMIT`]), `maxSpeed` etc. finite;
 /// * action ids non-empty and unique within the message, no null parameter values.
 pub fn validate_order(order: &Order) -> Result<(), Vda5050Error> {
-    use std::f64::consts::PI;
+    const PI: f64 = ANGLE_LIMIT;
     let fail = |d: String| Err(order_refs(validation(d), order));
     validate_header(&order.header, "order")?;
     if order.order_id.is_empty() {

@@ -6,8 +6,6 @@
 //! `visualization`, `connection`, `factsheet`) and where to drive next ([`Target`]). Nothing here
 //! reads a clock, a socket or a sensor.
 
-use std::f64::consts::PI;
-
 use crate::error::{ErrorKind, Vda5050Error};
 use crate::localization::{agv_position_from_estimate, wrap_angle};
 use crate::messages::{
@@ -17,7 +15,9 @@ use crate::messages::{
     OperatingMode, Order, Reference, SafetyState, State, ValueDataType, Velocity, Visualization,
     PROTOCOL_VERSION,
 };
-use crate::parse::{parse_instant_actions, parse_order, validate_instant_actions, validate_order};
+use crate::parse::{
+    parse_instant_actions, parse_order, validate_instant_actions, validate_order, ANGLE_LIMIT,
+};
 use crate::time::Timestamp;
 
 /// The longest the specification lets a vehicle go without a `state` message, ms (section 6.10).
@@ -1119,7 +1119,7 @@ impl Vehicle {
             (Some(x), Some(y), Some(theta), Some(map_id))
                 if x.is_finite()
                     && y.is_finite()
-                    && (-PI..=PI).contains(&theta)
+                    && (-ANGLE_LIMIT..=ANGLE_LIMIT).contains(&theta)
                     && !map_id.is_empty() =>
             {
                 Some(InitPositionRequest {

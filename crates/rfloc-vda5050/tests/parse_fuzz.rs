@@ -14,6 +14,7 @@ fn order_json() -> Value {
 }
 
 #[test]
+#[allow(clippy::approx_constant)] // π as a master control rounds it is the point
 fn malformed_inputs_are_validation_errors() {
     let kind = |bytes: &[u8]| parse_order(bytes).unwrap_err().kind;
     assert_eq!(kind(b""), ErrorKind::Validation);
@@ -81,6 +82,16 @@ fn malformed_inputs_are_validation_errors() {
     // Odd node sequence id.
     let mut o = order_json();
     o["nodes"][0]["sequenceId"] = json!(1);
+    assert_eq!(
+        kind(&serde_json::to_vec(&o).unwrap()),
+        ErrorKind::Validation
+    );
+    // π as master controls round it (3.14159265359 > f64 π) is accepted; beyond it is not.
+    let mut o = order_json();
+    o["nodes"][0]["nodePosition"]["theta"] = json!(3.14159265359);
+    o["nodes"][0]["nodePosition"]["allowedDeviationTheta"] = json!(3.14159265359);
+    assert!(parse_order(&serde_json::to_vec(&o).unwrap()).is_ok());
+    o["nodes"][0]["nodePosition"]["theta"] = json!(-3.1416);
     assert_eq!(
         kind(&serde_json::to_vec(&o).unwrap()),
         ErrorKind::Validation
