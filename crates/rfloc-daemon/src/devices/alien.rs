@@ -137,6 +137,9 @@ fn password(ctx: &DeviceContext, settings: &AlienSettings) -> Result<String, Str
     };
     let path = resolve_credential(file, ctx.config_dir.as_deref())
         .ok_or_else(|| format!("password file {} not found", file.display()))?;
+    if let Some(w) = crate::config::secret_file_warning(&path) {
+        tracing::warn!("{w}");
+    }
     let text = std::fs::read_to_string(&path)
         .map_err(|e| format!("cannot read password file {}: {e}", path.display()))?;
     Ok(text
@@ -241,7 +244,7 @@ async fn run(ctx: DeviceContext, settings: AlienSettings) {
             if e.is_auth_failure() {
                 // The session waits out its authentication back-off before the next login.
                 tracing::error!(error = %e, "UHF reader refused the login");
-                ctx.status(DeviceState::Closed, e.to_string()).await;
+                ctx.status(DeviceState::Failed, e.to_string()).await;
             } else {
                 tracing::warn!(error = %e, "UHF read failed; the session reconnects");
                 ctx.status(DeviceState::Reconnecting, e.to_string()).await;
