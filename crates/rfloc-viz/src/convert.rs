@@ -93,7 +93,7 @@ fn vector(x: f64, y: f64, z: f64) -> Vector3 {
 
 /// A planar pose as a Foxglove pose at z = 0, rotated about +z.
 #[must_use]
-pub fn pose3(p: &Pose2) -> Pose {
+pub(crate) fn pose3(p: &Pose2) -> Pose {
     Pose {
         position: Some(vector(p.x, p.y, 0.0)),
         orientation: Some(quaternion(p.theta)),
