@@ -1,8 +1,11 @@
 //! The Python `mcap` package (`tests/peers/mcap_read.py`) reads a recording with every channel:
-//! channel names, schemas and message counts, by iteration and from the summary.
+//! channel names, schemas and message counts, by iteration and from the summary, and every
+//! message decoded by Google's protobuf runtime from the schemas stored in the file
+//! (mcap-protobuf-support), with decoded fields of a pose and of the custom link message.
 //!
-//! The interpreter comes from `RFLOC_PYTHON` (a venv with `mcap`, tested with 1.6.0). Without it
-//! the test prints why and passes; with it, any failure fails the test.
+//! The interpreter comes from `RFLOC_PYTHON` (a venv with `mcap==1.6.0` and
+//! `mcap-protobuf-support==0.6.0`). Without it the test prints why and passes; with it, any
+//! failure fails the test.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
@@ -44,6 +47,7 @@ fn python_mcap_reads_every_channel() {
         let c = &channels[*topic];
         assert_eq!(c["count"], *n, "{topic}: {c}");
         assert_eq!(c["summary_count"], *n, "{topic}: {c}");
+        assert_eq!(c["decoded"], *n, "{topic}: {c}");
         assert_eq!(c["message_encoding"], "protobuf", "{topic}");
         assert_eq!(c["schema_encoding"], "protobuf", "{topic}");
     }
@@ -59,4 +63,22 @@ fn python_mcap_reads_every_channel() {
     assert_eq!(json["first_log_time"], common::T0);
     assert_eq!(json["last_log_time"], common::stamp(1004).unix_nanos());
     assert!(json["library"].as_str().unwrap().starts_with("rfloc-viz "));
+
+    // The first pose of `common::events`: (1, 2) heading 0, at T0.
+    let pose = &json["samples"][rfloc_viz::topics::POSE];
+    assert_eq!(pose["frame_id"], "map", "{pose}");
+    assert_eq!(
+        (&pose["x"], &pose["y"]),
+        (&Value::from(1.0), &Value::from(2.0))
+    );
+    assert_eq!(
+        (&pose["qz"], &pose["qw"]),
+        (&Value::from(0.0), &Value::from(1.0))
+    );
+    assert_eq!(pose["log_time_ns"], common::T0);
+    // The first link chunk: sent, b"GD" 0x00 0xff b"\n".
+    let link = &json["samples"][rfloc_viz::topics::LINK];
+    assert_eq!(link["device"], "urg", "{link}");
+    assert_eq!(link["direction"], "Tx", "{link}");
+    assert_eq!(link["data_hex"], "474400ff0a", "{link}");
 }
