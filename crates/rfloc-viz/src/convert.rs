@@ -311,7 +311,8 @@ pub(crate) fn landmarks(stamp: Stamp, kind: LandmarkKind, marks: &[Landmark]) ->
     }
 }
 
-/// Bytes per particle in [`particles`]' point cloud: x, y, yaw, weight as little-endian `f32`.
+/// Bytes per particle in the point cloud of [`crate::topics::PARTICLES`]: x, y, yaw, weight as
+/// little-endian `f32`.
 pub const PARTICLE_STRIDE: u32 = 16;
 
 pub(crate) fn particles(stamp: Stamp, ps: &[Particle]) -> PointCloud {
