@@ -33,7 +33,7 @@ pub use convert::{
 pub use event::{
     Direction, Landmark, LandmarkKind, LogLevel, Particle, RangeScan, TargetEstimate, VizEvent,
 };
-pub use live::{LiveServer, SUBPROTOCOLS};
+pub use live::{LiveServer, CLIENT_QUEUE_BYTES, SUBPROTOCOLS};
 pub use record::Recording;
 pub use stamp::Stamp;
 pub use viz::{Viz, VizError, DEFAULT_BACKLOG};

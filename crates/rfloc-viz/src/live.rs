@@ -32,6 +32,10 @@ use crate::hub::{Hub, Sink};
 /// name that the Foxglove SDK gives the same protocol.
 pub const SUBPROTOCOLS: [&str; 2] = ["foxglove.websocket.v1", "foxglove.sdk.v1"];
 
+/// Most bytes of message data queued for one client; past it the oldest queued messages go
+/// too, so that a slow client costs bounded memory whatever the message sizes.
+pub const CLIENT_QUEUE_BYTES: usize = 32 * 1024 * 1024;
+
 /// Opcode of a server's binary message-data frame.
 const OP_MESSAGE_DATA: u8 = 0x01;
 
@@ -51,6 +55,8 @@ struct Subscriptions {
 struct Outbox {
     control: VecDeque<String>,
     data: VecDeque<Vec<u8>>,
+    /// Sum of the lengths in `data`.
+    data_bytes: usize,
 }
 
 struct Client {
@@ -86,15 +92,21 @@ impl Client {
         self.wake.notify_one();
     }
 
-    /// Queues a data frame; returns how many frames were dropped to make room.
+    /// Queues a data frame; returns how many frames were dropped to make room: the oldest, while
+    /// more than `backlog` frames or [`CLIENT_QUEUE_BYTES`] are queued (the newest frame stays).
     fn push_data(&self, frame: Vec<u8>, backlog: usize) -> u64 {
         let mut dropped = 0;
         {
             let mut out = self.out.lock().unwrap_or_else(PoisonError::into_inner);
+            out.data_bytes += frame.len();
             out.data.push_back(frame);
-            while out.data.len() > backlog {
-                out.data.pop_front();
-                dropped += 1;
+            while out.data.len() > backlog
+                || (out.data_bytes > CLIENT_QUEUE_BYTES && out.data.len() > 1)
+            {
+                if let Some(old) = out.data.pop_front() {
+                    out.data_bytes -= old.len();
+                    dropped += 1;
+                }
             }
         }
         self.wake.notify_one();
@@ -103,6 +115,7 @@ impl Client {
 
     fn take(&self) -> (Vec<String>, Vec<Vec<u8>>) {
         let mut out = self.out.lock().unwrap_or_else(PoisonError::into_inner);
+        out.data_bytes = 0;
         (
             out.control.drain(..).collect(),
             out.data.drain(..).collect(),
@@ -512,5 +525,50 @@ impl Drop for LiveServer {
         if let Some(task) = self.task.take() {
             task.abort();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn queued(c: &Client) -> (usize, usize) {
+        let out = c.out.lock().unwrap();
+        (out.data.len(), out.data_bytes)
+    }
+
+    #[test]
+    fn a_full_queue_drops_its_oldest_frames() {
+        let c = Client::new();
+        let mut dropped = 0;
+        for i in 0..10u8 {
+            dropped += c.push_data(vec![i; 3], 4);
+        }
+        assert_eq!(dropped, 6);
+        assert_eq!(queued(&c), (4, 12));
+        let (_, data) = c.take();
+        assert_eq!(data.iter().map(|f| f[0]).collect::<Vec<_>>(), [6, 7, 8, 9]);
+        assert_eq!(queued(&c), (0, 0));
+    }
+
+    #[test]
+    fn the_queue_is_bounded_in_bytes_too_but_keeps_the_newest_frame() {
+        let c = Client::new();
+        let big = CLIENT_QUEUE_BYTES / 3 + 1;
+        let mut dropped = 0;
+        for _ in 0..3 {
+            dropped += c.push_data(vec![0; big], 1000);
+        }
+        assert_eq!(
+            dropped, 1,
+            "three frames exceed the byte limit: the oldest went"
+        );
+        assert_eq!(queued(&c), (2, 2 * big));
+        // A single frame larger than the limit is still sent.
+        assert_eq!(c.push_data(vec![1; CLIENT_QUEUE_BYTES + 1], 1000), 2);
+        assert_eq!(queued(&c).0, 1);
+        c.push_control("{}".into());
+        let (control, data) = c.take();
+        assert_eq!((control.len(), data.len()), (1, 1));
     }
 }
