@@ -21,7 +21,7 @@ fn script() -> PathBuf {
 #[test]
 fn python_mcap_reads_every_channel() {
     let Some(python) = std::env::var_os("RFLOC_PYTHON") else {
-        println!("skipped: RFLOC_PYTHON not set (a venv with the mcap package runs this test)");
+        println!("skipped: RFLOC_PYTHON not set (a venv with mcap==1.6.0 and mcap-protobuf-support==0.6.0 runs this test)");
         return;
     };
     let dir = tempfile::tempdir().unwrap();
