@@ -141,6 +141,8 @@ pub fn spawn(worker: Worker, capacity: usize) -> std::io::Result<EstimatorThread
 impl Worker {
     fn run(mut self, rx: &Receiver<Input>, progress: &Progress) {
         let mut last_seen: HashMap<String, f64> = HashMap::new();
+        // The robot's latest odometry pose, for the odometry frames of POSE lines.
+        let mut odom: Option<rfloc_pose::Pose2> = None;
         let mut last_t = 0.0f64;
         let mut non_finite = 0u64;
         while let Ok(input) = rx.recv() {
@@ -161,6 +163,9 @@ impl Worker {
             if !end {
                 last_seen.insert(event.device().to_string(), t);
             }
+            if let DeviceEvent::Odometry { pose, .. } = &event {
+                odom = Some(*pose);
+            }
             if self.print_observations {
                 self.emit(&event.to_json());
             }
@@ -178,7 +183,7 @@ impl Worker {
                     if let Some(score) = self.outputs.scorer.as_mut() {
                         score(&est);
                     }
-                    match message::pose_json(&est, &self.format) {
+                    match message::pose_json_with_odometry(&est, odom.as_ref(), &self.format) {
                         Ok(line) => {
                             if let Some(hub) = &self.outputs.hub {
                                 hub.publish_pose(line.clone());

@@ -292,7 +292,9 @@ impl PoseHub {
             }
             "?WATCH" => {
                 // The stream is always on: the answer states it, then the current state.
-                let mut out = vec![line(serde_json::json!({"class": "WATCH", "enable": true, "json": true}))];
+                let mut out = vec![line(
+                    serde_json::json!({"class": "WATCH", "enable": true, "json": true}),
+                )];
                 out.extend(latest_devices);
                 out.extend(pose);
                 out.extend(target);
@@ -421,7 +423,8 @@ impl PoseHub {
                             return;
                         }
                         tracing::debug!(%peer, "pose client connected (tcp)");
-                        hub.serve_client_with_requests(Some(read), write, &peer, stop).await;
+                        hub.serve_client_with_requests(Some(read), write, &peer, stop)
+                            .await;
                     });
                 }
                 Err(e) => {
@@ -464,7 +467,8 @@ impl PoseHub {
                     tokio::spawn(async move {
                         let _slot = slot;
                         let (read, write) = stream.into_split();
-                        hub.serve_client_with_requests(Some(read), write, "unix", stop).await;
+                        hub.serve_client_with_requests(Some(read), write, "unix", stop)
+                            .await;
                     });
                 }
                 Err(e) => {
@@ -752,7 +756,10 @@ mod tests {
     #[tokio::test]
     async fn requests_are_answered_with_the_current_state() {
         let (hub, addr, stop) = tcp_hub(Access::default()).await;
-        hub.publish_device("hf", "{\"class\":\"DEVICE\",\"name\":\"hf\",\"state\":\"connected\"}".into());
+        hub.publish_device(
+            "hf",
+            "{\"class\":\"DEVICE\",\"name\":\"hf\",\"state\":\"connected\"}".into(),
+        );
         hub.publish_pose("{\"class\":\"POSE\",\"x\":1.5}".into());
         let mut s = tokio::net::TcpStream::connect(addr).await.unwrap();
         s.write_all(b"?DEVICES;\n?POLL;\n?WATCH={\"enable\":true};\n?NONSENSE;\n")
@@ -768,7 +775,12 @@ mod tests {
         }
         let classes: Vec<String> = got
             .iter()
-            .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap()["class"].as_str().unwrap().to_string())
+            .map(|l| {
+                serde_json::from_str::<serde_json::Value>(l).unwrap()["class"]
+                    .as_str()
+                    .unwrap()
+                    .to_string()
+            })
             .collect();
         // Greeting, then the answers in order.
         assert_eq!(

@@ -89,6 +89,7 @@ fn record_and_replay(robot: &Path, dir: &Path) -> Vec<String> {
     );
     let live = estimate_lines(&live.stdout);
     let replayed = estimate_lines(&replay.stdout);
+    live.iter().for_each(|l| common::assert_stream_line(l));
     assert!(!live.is_empty(), "the live run published nothing");
     if let Some(i) = (0..live.len().max(replayed.len())).find(|i| live.get(*i) != replayed.get(*i))
     {
