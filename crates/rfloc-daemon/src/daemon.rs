@@ -99,6 +99,25 @@ pub async fn run_with_pipeline(
     );
     let time_scale = sim.as_ref().map_or(1.0, |s| s.time_scale());
 
+    // Foxglove live view.
+    let mut live_view = None;
+    let viz = match &cfg.foxglove.listen {
+        Some(addr) => {
+            let addr: std::net::SocketAddr = addr
+                .parse()
+                .with_context(|| format!("foxglove.listen {addr:?}"))?;
+            let hub = rfloc_viz::Viz::new();
+            let live = hub
+                .serve(addr, None)
+                .await
+                .with_context(|| format!("serving the Foxglove live view on {addr}"))?;
+            tracing::info!(url = %live.url(), "Foxglove live view");
+            live_view = Some(live);
+            Some(crate::viz::VizOut::new(hub, origin))
+        }
+        None => None,
+    };
+
     // Pose stream.
     let token = match &cfg.pose.token_file {
         Some(p) => {
@@ -231,6 +250,7 @@ pub async fn run_with_pipeline(
             order_log,
             scorer: sim.as_ref().and_then(|s| s.scorer()),
             ack: None,
+            viz: viz.clone(),
         },
         print_observations: false,
     };
@@ -256,6 +276,7 @@ pub async fn run_with_pipeline(
         last_consumed: (0, tokio::time::Instant::now()),
         health,
         max_down: crate::time::seconds(cfg.supervision.max_down_s),
+        viz: viz.clone(),
     };
     router.run(ev_rx, &stop, deadline).await;
 
@@ -299,6 +320,9 @@ pub async fn run_with_pipeline(
     for s in servers {
         let _ = tokio::time::timeout(Duration::from_secs(1), s).await;
     }
+    if let Some(live) = live_view {
+        live.stop().await;
+    }
     tracing::info!(slow_clients_dropped = hub.dropped_clients(), "stopped");
     Ok(())
 }
@@ -318,6 +342,8 @@ struct Router {
     health: Arc<Health>,
     /// A device down longer than this stops the watchdog.
     max_down: Duration,
+    /// Foxglove channels, for device status.
+    viz: Option<crate::viz::VizOut>,
 }
 
 impl Router {
@@ -383,6 +409,9 @@ impl Router {
             );
             if *state == DeviceState::Connected {
                 self.health.up(device);
+            }
+            if let Some(v) = &self.viz {
+                v.status(device, *state, detail);
             }
             return;
         }

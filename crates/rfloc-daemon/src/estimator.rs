@@ -61,6 +61,8 @@ pub struct Outputs {
     pub scorer: Option<crate::simulation::Scorer>,
     /// Told after each input is consumed (replay steps in lock with the thread).
     pub ack: Option<mpsc::UnboundedSender<u64>>,
+    /// Foxglove channels (a live view, an MCAP recording).
+    pub viz: Option<crate::viz::VizOut>,
 }
 
 /// Liveness of the thread, for the watchdog.
@@ -166,6 +168,9 @@ impl Worker {
             if let DeviceEvent::Odometry { pose, .. } = &event {
                 odom = Some(*pose);
             }
+            if let (Some(v), false) = (&self.outputs.viz, end) {
+                v.observation(&event);
+            }
             if self.print_observations {
                 self.emit(&event.to_json());
             }
@@ -173,6 +178,9 @@ impl Worker {
                 let estimate = p.handle(&event);
                 let requests = p.take_requests();
                 let targets = p.take_targets();
+                if let Some(v) = self.outputs.viz.as_mut() {
+                    v.scene(t, || p.scene());
+                }
                 for request in requests {
                     route(&self.routes, request);
                 }
@@ -182,6 +190,9 @@ impl Worker {
                     }
                     if let Some(score) = self.outputs.scorer.as_mut() {
                         score(&est);
+                    }
+                    if let Some(v) = &self.outputs.viz {
+                        v.pose(&est, odom.as_ref());
                     }
                     match message::pose_json_with_odometry(&est, odom.as_ref(), &self.format) {
                         Ok(line) => {
@@ -199,6 +210,9 @@ impl Worker {
                     }
                 }
                 for target in targets {
+                    if let Some(v) = &self.outputs.viz {
+                        v.target(&target);
+                    }
                     match message::target_json(&target, &self.format) {
                         Ok(line) => {
                             if let Some(hub) = &self.outputs.hub {

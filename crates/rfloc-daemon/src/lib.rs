@@ -16,3 +16,4 @@ pub mod replay;
 pub mod server;
 pub mod simulation;
 pub mod time;
+pub mod viz;

@@ -40,6 +40,9 @@ pub struct ReplayOptions {
     pub config: Option<RobotConfig>,
     /// Print the observations instead of running a pipeline.
     pub observations: bool,
+    /// Also write an MCAP file: every device's raw link bytes, the decoded observations, the
+    /// poses, targets and the pipeline's scene.
+    pub mcap: Option<PathBuf>,
 }
 
 /// Replays `dir` on its own paused runtime and returns the lines it prints.
@@ -401,6 +404,29 @@ pub async fn replay_lines(dir: &Path, opts: &ReplayOptions) -> anyhow::Result<Ve
         ),
         None => None,
     };
+    // MCAP: the raw bytes of every link first (they are in the captures), then what the run
+    // makes of them.
+    let recording = match &opts.mcap {
+        Some(path) => {
+            let hub = rfloc_viz::Viz::new();
+            let recording = hub
+                .record(path)
+                .with_context(|| format!("writing {}", path.display()))?;
+            let out = crate::viz::VizOut::new(hub, origin);
+            for rec in &caps {
+                for r in &rec.capture.records {
+                    match &r.kind {
+                        RecordKind::Rx(b) => out.link_bytes(r.t(), &rec.name, true, b),
+                        RecordKind::Tx(b) => out.link_bytes(r.t(), &rec.name, false, b),
+                        RecordKind::Event(_) => {}
+                    }
+                }
+            }
+            Some((recording, out))
+        }
+        None => None,
+    };
+    let viz = recording.as_ref().map(|(_, out)| out.clone());
     let (lines_tx, lines_rx) = std::sync::mpsc::channel();
     let (ack_tx, mut ack_rx) = mpsc::unbounded_channel();
     let worker = Worker {
@@ -424,6 +450,7 @@ pub async fn replay_lines(dir: &Path, opts: &ReplayOptions) -> anyhow::Result<Ve
             order_log: None,
             scorer: None,
             ack: Some(ack_tx),
+            viz: viz.clone(),
         },
         print_observations: estimator_cfg.is_none(),
     };
@@ -529,6 +556,9 @@ pub async fn replay_lines(dir: &Path, opts: &ReplayOptions) -> anyhow::Result<Ve
     let _ = tokio::task::spawn_blocking(move || thread.handle.join()).await;
     if divergences > 0 {
         anyhow::bail!("replay diverged from the recording at {divergences} of {fed} inputs");
+    }
+    if let Some((recording, _)) = recording {
+        recording.finish().context("finishing the MCAP file")?;
     }
     let lines: Vec<String> = lines_rx.try_iter().collect();
     Ok(lines)

@@ -66,6 +66,9 @@ enum Command {
         /// Print the decoded observations instead of running a pipeline.
         #[arg(long)]
         observations: bool,
+        /// Also write an MCAP file for Foxglove: raw link bytes, observations, poses, scene.
+        #[arg(long, value_name = "OUT.mcap")]
+        mcap: Option<PathBuf>,
     },
     /// Run the daemon and record a capture of every device link into a folder.
     Record {
@@ -75,6 +78,10 @@ enum Command {
         /// Folder for the captures, the robot file and the pipeline's input order.
         #[arg(short, long)]
         out: PathBuf,
+        /// When the run ends, also write `run.mcap` into the folder (a replay of the recording:
+        /// raw link bytes, observations, poses, scene).
+        #[arg(long)]
+        mcap: bool,
     },
     /// Run a seed scenario against emulated devices and report its metrics next to the seed's.
     #[cfg(feature = "lab")]
@@ -240,7 +247,7 @@ fn main() -> ExitCode {
                 },
             ))
         }
-        Command::Record { config, out } => {
+        Command::Record { config, out, mcap } => {
             let cfg = match load_config(&config, true) {
                 Ok(c) => c,
                 Err(code) => return code,
@@ -257,19 +264,38 @@ fn main() -> ExitCode {
                 );
                 return ExitCode::from(73);
             }
-            run_async(run_daemon(
+            let code = run_async(run_daemon(
                 cfg,
                 rfloc_daemon::daemon::RunOptions {
                     stdout: false,
-                    capture_dir: Some(out),
+                    capture_dir: Some(out.clone()),
                 },
-            ))
+            ));
+            if !mcap || code != ExitCode::SUCCESS {
+                return code;
+            }
+            let path = out.join("run.mcap");
+            let opts = rfloc_daemon::replay::ReplayOptions {
+                mcap: Some(path.clone()),
+                ..rfloc_daemon::replay::ReplayOptions::default()
+            };
+            match rfloc_daemon::replay::replay_blocking(&out, &opts) {
+                Ok(_) => {
+                    eprintln!("rfloc: wrote {}", path.display());
+                    ExitCode::SUCCESS
+                }
+                Err(e) => {
+                    eprintln!("rfloc: {}: {e:#}", path.display());
+                    ExitCode::FAILURE
+                }
+            }
         }
         Command::Replay {
             dir,
             pipeline,
             config,
             observations,
+            mcap,
         } => {
             init_logging("warn", "text");
             let cfg = match config {
@@ -283,6 +309,7 @@ fn main() -> ExitCode {
                 pipeline,
                 config: cfg,
                 observations,
+                mcap,
             };
             match rfloc_daemon::replay::replay_dir(dir, &opts) {
                 Ok(()) => ExitCode::SUCCESS,

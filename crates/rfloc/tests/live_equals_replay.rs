@@ -42,6 +42,9 @@ fn regex_free_port(text: &str, port: u16) -> String {
         .map(|l| {
             if l.starts_with("tcp = \"127.0.0.1:") {
                 format!("tcp = \"127.0.0.1:{port}\"")
+            } else if l.starts_with("listen = \"127.0.0.1:") {
+                // Any free port: several simulated robots run at once.
+                "listen = \"127.0.0.1:0\"".to_string()
             } else {
                 l.to_string()
             }

@@ -29,7 +29,9 @@ pub use estimator::{
     EkfSlamSettings, EmitterSettings, EstimatorConfig, GridTag, HfGridSettings, SnapshotSettings,
     WheelSlipSettings, PIPELINES,
 };
-pub use sections::{LogConfig, PoseOutputConfig, RobotSection, StateConfig, SupervisionConfig};
+pub use sections::{
+    FoxgloveConfig, LogConfig, PoseOutputConfig, RobotSection, StateConfig, SupervisionConfig,
+};
 
 pub use crate::devices::alien::AlienSettings;
 pub use crate::devices::aria::AriaSettings;
@@ -51,6 +53,7 @@ pub struct RobotConfig {
     pub log: LogConfig,
     pub state: StateConfig,
     pub supervision: SupervisionConfig,
+    pub foxglove: FoxgloveConfig,
     /// Present in simulation configs: devices are emulated (by the lab) on ptys and loopback
     /// sockets. The daemon only knows that the section is there.
     pub simulation: bool,
@@ -127,6 +130,7 @@ const SECTIONS: &[&str] = &[
     "log",
     "state",
     "supervision",
+    "foxglove",
 ];
 
 impl RobotConfig {
@@ -208,6 +212,7 @@ struct Parts {
     log: Option<LogConfig>,
     state: Option<StateConfig>,
     supervision: Option<SupervisionConfig>,
+    foxglove: Option<FoxgloveConfig>,
     simulation: bool,
 }
 
@@ -256,6 +261,9 @@ impl Parts {
         if let Some(s) = &self.supervision {
             s.check(&mut Checks::new(diag, "supervision"));
         }
+        if let Some(f) = &self.foxglove {
+            f.check(&mut Checks::new(diag, "foxglove"));
+        }
     }
 
     fn assemble(self, text: &str, file: &str, dir: Option<&Path>) -> Option<RobotConfig> {
@@ -267,6 +275,7 @@ impl Parts {
             log: self.log?,
             state: self.state?,
             supervision: self.supervision?,
+            foxglove: self.foxglove?,
             simulation: self.simulation,
             source: Arc::new(ConfigSource {
                 file: file.to_string(),
@@ -374,6 +383,7 @@ fn parse_root<'i>(diag: &mut Diagnostics<'i>, dir: Option<&Path>, opts: &LoadOpt
         log: None,
         state: None,
         supervision: None,
+        foxglove: None,
         simulation: false,
     };
     let Some(table) = diag::table(root) else {
@@ -434,6 +444,10 @@ fn parse_root<'i>(diag: &mut Diagnostics<'i>, dir: Option<&Path>, opts: &LoadOpt
     let state = match diag::get(root, "state") {
         Some(n) => diag.deserialize::<StateConfig>("state", n),
         None => Some(StateConfig::default()),
+    };
+    parts.foxglove = match diag::get(root, "foxglove") {
+        Some(n) => diag.deserialize::<FoxgloveConfig>("foxglove", n),
+        None => Some(FoxgloveConfig::default()),
     };
     parts.supervision = match diag::get(root, "supervision") {
         Some(n) => diag.deserialize::<SupervisionConfig>("supervision", n),

@@ -357,6 +357,28 @@ impl EkfSlamPipeline {
 }
 
 impl Pipeline for EkfSlamPipeline {
+    fn scene(&self) -> Option<crate::pipeline::Scene> {
+        let beacons = self
+            .ekf
+            .beacons()
+            .iter()
+            .map(|b| crate::pipeline::SceneMark {
+                id: format!("{:016X}", b.id),
+                x: b.position.x,
+                y: b.position.y,
+                cov: Some([
+                    b.covariance[(0, 0)],
+                    b.covariance[(0, 1)],
+                    b.covariance[(1, 1)],
+                ]),
+            })
+            .collect();
+        Some(crate::pipeline::Scene {
+            beacons,
+            ..crate::pipeline::Scene::default()
+        })
+    }
+
     fn name(&self) -> &'static str {
         "ekfslam"
     }

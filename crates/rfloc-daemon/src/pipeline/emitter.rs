@@ -291,6 +291,19 @@ impl Drop for EmitterPipeline {
 }
 
 impl Pipeline for EmitterPipeline {
+    fn scene(&self) -> Option<crate::pipeline::Scene> {
+        let particles = self
+            .homing
+            .particles()
+            .iter()
+            .map(|p| [p.position.x, p.position.y, 0.0, p.weight])
+            .collect();
+        Some(crate::pipeline::Scene {
+            particles,
+            ..crate::pipeline::Scene::default()
+        })
+    }
+
     fn name(&self) -> &'static str {
         "emitter"
     }

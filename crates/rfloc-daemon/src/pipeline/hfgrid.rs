@@ -253,6 +253,24 @@ impl HfGridPipeline {
 }
 
 impl Pipeline for HfGridPipeline {
+    fn scene(&self) -> Option<crate::pipeline::Scene> {
+        let tags = self
+            .grid
+            .tags()
+            .into_iter()
+            .map(|(uid, x, y)| crate::pipeline::SceneMark {
+                id: format!("{uid:016X}"),
+                x,
+                y,
+                cov: None,
+            })
+            .collect();
+        Some(crate::pipeline::Scene {
+            tags,
+            ..crate::pipeline::Scene::default()
+        })
+    }
+
     fn name(&self) -> &'static str {
         "hfgrid"
     }

@@ -46,6 +46,31 @@ pub trait Pipeline: Send {
     fn take_targets(&mut self) -> Vec<TargetEstimate> {
         Vec::new()
     }
+    /// What the pipeline knows of the world, for a viewer: its beacon or tag map, its
+    /// particles. `None` when it has nothing to show.
+    fn scene(&self) -> Option<Scene> {
+        None
+    }
+}
+
+/// A pipeline's picture of the world ([`Pipeline::scene`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Scene {
+    /// Mapped beacons: id, position, position covariance (xx, xy, yy) when known.
+    pub beacons: Vec<SceneMark>,
+    /// Floor or wall tags.
+    pub tags: Vec<SceneMark>,
+    /// Particles: x, y, yaw, weight.
+    pub particles: Vec<[f64; 4]>,
+}
+
+/// One mapped thing of a [`Scene`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneMark {
+    pub id: String,
+    pub x: f64,
+    pub y: f64,
+    pub cov: Option<[f64; 3]>,
 }
 
 /// A position estimate of something the robot tracks, in the map frame.

@@ -56,6 +56,12 @@ const AGREE_RANGE_FRACTION: f64 = 0.3;
 const AGREE_MIN_FRACTION: f64 = 0.2;
 
 impl EmitterHoming {
+    /// The emitter filter's particles: hypothesised emitter positions with their weights.
+    #[must_use]
+    pub fn particles(&self) -> &[rfloc_emitter::filter::Particle] {
+        self.filter.particles()
+    }
+
     /// A pipeline for a robot starting at `start` (particles around the start, empty map).
     ///
     /// # Errors
