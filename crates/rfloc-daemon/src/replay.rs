@@ -171,6 +171,9 @@ fn estimator_for(
     };
     match opts.pipeline.as_deref() {
         Some("snapshot") => Ok(Some(EstimatorConfig::Snapshot(snapshot_settings(dir)))),
+        Some("emitter") => anyhow::bail!(
+            "pipeline emitter has no default calibration (a1_dbm_at_1m): give the robot file with -c"
+        ),
         Some(name) => EstimatorConfig::named(name).map(Some).with_context(|| {
             format!(
                 "unknown pipeline {name:?} (one of {})",
