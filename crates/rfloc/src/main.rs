@@ -95,6 +95,34 @@ enum Command {
         #[arg(long)]
         trials: Option<usize>,
     },
+    /// Serve one emulated device to any client (ARIA programs, digi-xbee, SCIP tools …).
+    #[cfg(feature = "lab")]
+    Emulate {
+        /// The device: aria (Pioneer), kts (HF reader), alien (UHF reader), xbee, urg (laser).
+        #[arg(value_parser = ["aria", "kts", "alien", "xbee", "urg"])]
+        device: String,
+        /// Serve on a pseudo-terminal and make PATH a symlink to it.
+        #[arg(long, value_name = "PATH", conflicts_with = "tcp")]
+        pty: Option<PathBuf>,
+        /// Serve on a TCP listener, one client at a time (the Pioneer's simulator port: 8101).
+        #[arg(long, value_name = "ADDR:PORT")]
+        tcp: Option<std::net::SocketAddr>,
+        /// A scenario whose world (walls, tags, beacons) and sensor models the device senses.
+        #[arg(long)]
+        scenario: Option<PathBuf>,
+        /// Where the device (or the robot, at the start) is: x (m), y (m), heading (degrees).
+        #[arg(long, value_name = "X,Y,DEG", value_delimiter = ',', num_args = 3, default_values_t = [0.0, 0.0, 0.0])]
+        pose: Vec<f64>,
+        /// XBee API mode: 1 (unescaped) or 2 (escaped).
+        #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(1..=2))]
+        api_mode: u8,
+        /// XBee firmware: zigbee or 802.15.4.
+        #[arg(long, default_value = "zigbee", value_parser = ["zigbee", "802.15.4"])]
+        flavor: String,
+        /// Seed of every random draw.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+    },
     /// Print the pose stream of a running daemon.
     Watch {
         /// TCP address of the pose stream.
@@ -330,6 +358,43 @@ fn main() -> ExitCode {
                 &path,
                 rfloc_lab::scenario::SimOptions { out, trials },
             ))
+        }
+        #[cfg(feature = "lab")]
+        Command::Emulate {
+            device,
+            pty,
+            tcp,
+            scenario,
+            pose,
+            api_mode,
+            flavor,
+            seed,
+        } => {
+            init_logging("info", "text");
+            let Some(device) = rfloc_lab::emulate::EmulatedDevice::named(&device) else {
+                return ExitCode::from(2);
+            };
+            let tcp = match (&pty, tcp, device) {
+                (None, None, rfloc_lab::emulate::EmulatedDevice::Aria) => {
+                    Some(std::net::SocketAddr::from(([127, 0, 0, 1], 8101)))
+                }
+                _ => tcp,
+            };
+            let opts = rfloc_lab::emulate::EmulateOptions {
+                device,
+                pty,
+                tcp,
+                scenario,
+                pose: [
+                    pose.first().copied().unwrap_or(0.0),
+                    pose.get(1).copied().unwrap_or(0.0),
+                    pose.get(2).copied().unwrap_or(0.0),
+                ],
+                api_mode,
+                flavor,
+                seed,
+            };
+            run_async(rfloc_lab::emulate::run(opts))
         }
         Command::Watch {
             tcp,

@@ -68,7 +68,7 @@ fn full_uid(uid: u64) -> u64 {
 }
 
 /// The reader emulator's tag field from the scenario world (row-major, x fastest).
-fn reader_grid(scenario: &Scenario) -> anyhow::Result<TagGrid> {
+pub(crate) fn reader_grid(scenario: &Scenario) -> anyhow::Result<TagGrid> {
     let world = &scenario.world;
     let pitch = world.hf_pitch.context("scenario world has no HF grid")?;
     let mut tags = world.hf_tags.clone();

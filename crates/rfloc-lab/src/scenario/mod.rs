@@ -14,7 +14,7 @@ use rfloc_sim::{Pipeline as ScenarioPipeline, Report, Scenario, Summary};
 
 mod ekfslam;
 mod emitter;
-mod hfinit;
+pub(crate) mod hfinit;
 mod lockstep;
 pub(crate) mod snapshot;
 
