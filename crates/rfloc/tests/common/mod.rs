@@ -105,10 +105,11 @@ impl Daemon {
         }
     }
 
-    /// The pose stream's JSON lines, retrying the connection while the daemon starts (5 s).
+    /// The pose stream's JSON lines, retrying the connection while the daemon starts (it
+    /// loads its learned state first; up to 30 s on a loaded machine).
     pub async fn pose_lines(&self, port: u16) -> Lines<BufReader<TcpStream>> {
         use tokio::io::AsyncBufReadExt;
-        for _ in 0..100 {
+        for _ in 0..600 {
             if let Ok(s) = TcpStream::connect(("127.0.0.1", port)).await {
                 return BufReader::new(s).lines();
             }
