@@ -487,9 +487,22 @@ pub async fn replay_lines(dir: &Path, opts: &ReplayOptions) -> anyhow::Result<Ve
 
     let mut fed = 0u64;
     let mut divergences = 0u64;
+    // Progress on a terminal (hidden when stderr is not one).
+    let progress = match &order {
+        Some(o) => indicatif::ProgressBar::new(o.len() as u64),
+        None => indicatif::ProgressBar::new_spinner(),
+    };
+    progress.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+    if let Ok(style) = indicatif::ProgressStyle::with_template(
+        "{prefix} {bar:30} {pos}/{len} observations {elapsed}",
+    ) {
+        progress.set_style(style);
+    }
+    progress.set_prefix("replay");
     match order {
         Some(order) => {
             for (device, ns) in order {
+                progress.inc(1);
                 if device == "daemon" {
                     break;
                 }
@@ -544,11 +557,13 @@ pub async fn replay_lines(dir: &Path, opts: &ReplayOptions) -> anyhow::Result<Ve
                 None
             };
             let Some(e) = event else { break };
+            progress.inc(1);
             feed(Input::Event(e))?;
             fed += 1;
             wait_ack(&mut ack_rx, fed).await;
         },
     }
+    progress.finish_and_clear();
     feed(Input::End)?;
     fed += 1;
     wait_ack(&mut ack_rx, fed).await;
