@@ -175,10 +175,17 @@ max_down_s = 2.0
         .map(|(_, t)| *t)
         .unwrap_or_else(|| panic!("mute device never reported stale: {mute:?}"));
     let up = up.unwrap();
-    assert!(stale_at - up < 2.5, "stale only {:.1} s after the daemon came up", stale_at - up);
+    assert!(
+        stale_at - up < 2.5,
+        "stale only {:.1} s after the daemon came up",
+        stale_at - up
+    );
     // Fed at first; no longer once a device has been down 2 s (crashy from its first crash,
     // mute from 1 s of silence).
-    assert!(pings.iter().any(|t| *t < up + 1.5), "never fed: {pings:?} (up at {up:.1} s)");
+    assert!(
+        pings.iter().any(|t| *t < up + 1.5),
+        "never fed: {pings:?} (up at {up:.1} s)"
+    );
     assert!(
         !pings.iter().any(|t| *t > up + 5.0),
         "still fed with devices down: {pings:?} (up at {up:.1} s)"
