@@ -57,7 +57,7 @@ fn a_full_disk_under_the_recording_is_counted_and_the_robot_runs_on() {
         .lines()
         .filter(|l| l.contains("\"class\":\"POSE\""))
         .count();
-    assert!(poses > 20, "{poses} poses while the disk was full\n{log}");
+    assert!(poses >= 10, "{poses} poses while the disk was full\n{log}");
     assert!(
         log.contains("capture write failed") || log.contains("order log write failed"),
         "{log}"
