@@ -61,6 +61,8 @@ pub struct Outputs {
     pub scorer: Option<crate::simulation::Scorer>,
     /// Told after each input is consumed (replay steps in lock with the thread).
     pub ack: Option<mpsc::UnboundedSender<u64>>,
+    /// The fleet link (`[fleet]`): estimates out, goals and initialisations in.
+    pub fleet: Option<crate::fleet::EstimatorLink>,
 }
 
 /// Liveness of the thread, for the watchdog.
@@ -165,6 +167,9 @@ impl Worker {
                 self.emit(&event.to_json());
             }
             if let Some(p) = self.pipeline.as_mut() {
+                if let Some(f) = self.outputs.fleet.as_mut() {
+                    f.before_event(p.as_mut(), &event);
+                }
                 let estimate = p.handle(&event);
                 let requests = p.take_requests();
                 let targets = p.take_targets();
@@ -177,6 +182,9 @@ impl Worker {
                     }
                     if let Some(score) = self.outputs.scorer.as_mut() {
                         score(&est);
+                    }
+                    if let Some(f) = self.outputs.fleet.as_mut() {
+                        f.estimate(&est);
                     }
                     match message::pose_json(&est, &self.format) {
                         Ok(line) => {

@@ -424,6 +424,7 @@ pub async fn replay_lines(dir: &Path, opts: &ReplayOptions) -> anyhow::Result<Ve
             order_log: None,
             scorer: None,
             ack: Some(ack_tx),
+            fleet: None,
         },
         print_observations: estimator_cfg.is_none(),
     };

@@ -4,12 +4,14 @@ use nalgebra::Matrix3;
 use rfloc_pose::{EstimateMode, Pose2, PoseEstimate};
 
 use crate::events::DeviceEvent;
-use crate::pipeline::Pipeline;
+use crate::pipeline::{InitOutcome, Pipeline};
 
 /// Dead reckoning from the base's odometry. Position variance grows with distance travelled
 /// (1 % of distance as standard deviation) and heading variance with rotation (2 %).
 #[derive(Debug, Default)]
 pub struct OdometryPipeline {
+    /// Where the odometry frame lies on the map (identity until an `initPosition`).
+    frame: Pose2,
     last: Option<Pose2>,
     travelled: f64,
     rotated: f64,
@@ -33,7 +35,7 @@ impl Pipeline for OdometryPipeline {
         let sth = (0.02 * self.rotated).max(1e-3);
         Some(PoseEstimate {
             time: *t,
-            pose: *pose,
+            pose: self.frame.compose(pose),
             covariance: Matrix3::from_diagonal(&nalgebra::Vector3::new(
                 sxy * sxy,
                 sxy * sxy,
@@ -42,6 +44,13 @@ impl Pipeline for OdometryPipeline {
             mode: EstimateMode::Degraded,
             source: "odometry".into(),
         })
+    }
+
+    /// The odometry frame is placed so that the latest odometry pose comes out at `pose`.
+    fn init_position(&mut self, pose: Pose2) -> InitOutcome {
+        let odometry = self.last.unwrap_or_default();
+        self.frame = pose.compose(&Pose2::default().relative_to(&odometry));
+        InitOutcome::Done
     }
 }
 
