@@ -231,3 +231,82 @@ pub fn read_password(path: &std::path::Path) -> Result<String, String> {
     }
     Ok(line.to_string())
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::config::RobotConfig;
+
+    const BASE: &str = "[robot]\nname = \"r\"\n\n[[device]]\nname = \"base\"\nlink = { kind = \"serial\", path = \"/dev/null\", baud = 9600 }\n[device.driver]\nkind = \"aria\"\n\n[estimator]\npipeline = \"odometry\"\n";
+
+    fn parse(fleet: &str) -> Result<RobotConfig, String> {
+        RobotConfig::parse(&format!("{BASE}\n{fleet}"), "robot.toml", None)
+            .map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn a_fleet_section_parses_with_its_defaults() {
+        let cfg = parse("[fleet]\nbroker = \"127.0.0.1:1883\"\nmanufacturer = \"acme\"\nserial_number = \"r7\"\n").unwrap();
+        let f = cfg.fleet.unwrap();
+        assert_eq!(f.interface_name, "uagv");
+        assert_eq!(f.major_version, "v2");
+        assert_eq!(f.client_id(), "rfloc-r7");
+        assert_eq!(f.broker_host_port(), Some(("127.0.0.1".into(), 1883)));
+        assert!((f.state_interval_s - 30.0).abs() < 1e-12);
+        assert!(parse("").unwrap().fleet.is_none());
+    }
+
+    #[test]
+    fn fleet_errors_name_their_keys_and_lines() {
+        let e = parse("[fleet]\nbroker = \"nowhere\"\nmanufacturer = \"ac/me\"\nserial_number = \"\"\nmajor_version = \"v3\"\nstate_interval_s = 60.0\nvisualization_hz = -1.0\npassword_file = \"pw\"\ntls = true\nbattery_empty_v = 13.0\n").unwrap_err();
+        for needle in [
+            "robot.toml:14:1: key `fleet.broker`: \"nowhere\" is not host:port",
+            "robot.toml:15:1: key `fleet.manufacturer`",
+            "robot.toml:16:1: key `fleet.serial_number`",
+            "robot.toml:17:1: key `fleet.major_version`",
+            "robot.toml:18:1: key `fleet.state_interval_s`: must be a number from 1 to 30 s",
+            "robot.toml:19:1: key `fleet.visualization_hz`",
+            "robot.toml:20:1: key `fleet.password_file`: needs fleet.username",
+            "robot.toml:21:1: key `fleet.tls`: needs fleet.ca_file",
+            "key `fleet.battery_full_v`: must be above battery_empty_v",
+        ] {
+            assert!(e.contains(needle), "{needle:?} not in\n{e}");
+        }
+        let e = parse(
+            "[fleet]\nbroker = \"h:1\"\nmanufacturer = \"a\"\nserial_number = \"s\"\nspeed = 3\n",
+        )
+        .unwrap_err();
+        assert!(e.contains("key `fleet.speed`"), "{e}");
+        let e = parse("[fleet]\nmanufacturer = \"a\"\nserial_number = \"s\"\n").unwrap_err();
+        assert!(e.contains("broker"), "{e}");
+    }
+
+    #[test]
+    fn the_password_file_is_checked_and_never_printed() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("pw"), "s3cret\n").unwrap();
+        std::fs::write(dir.path().join("empty"), "\n").unwrap();
+        let text = |file: &str| {
+            format!("{BASE}\n[fleet]\nbroker = \"h:1\"\nmanufacturer = \"a\"\nserial_number = \"s\"\nusername = \"u\"\npassword_file = \"{file}\"\n")
+        };
+        let opts = crate::config::LoadOptions {
+            check_files: true,
+            extensions: &[],
+            for_replay: true,
+        };
+        let ok =
+            RobotConfig::load_text(&text("pw"), "robot.toml", Some(dir.path()), &opts).unwrap();
+        let p = ok.fleet.unwrap().password_file.unwrap();
+        let found = crate::config::resolve_credential(&p, Some(dir.path())).unwrap();
+        assert_eq!(super::read_password(&found).unwrap(), "s3cret");
+        for (file, needle) in [("empty", "empty first line"), ("missing", "not found")] {
+            let e = RobotConfig::load_text(&text(file), "robot.toml", Some(dir.path()), &opts)
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains("key `fleet.password_file`") && e.contains(needle),
+                "{e}"
+            );
+            assert!(!e.contains("s3cret"));
+        }
+    }
+}

@@ -527,3 +527,376 @@ impl Agent {
         out.controls.push(Control::Goal(goal));
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::{json, Value};
+
+    fn fleet() -> FleetConfig {
+        toml::from_str(
+            "broker = \"127.0.0.1:1883\"\nmanufacturer = \"rfloc\"\nserial_number = \"r1\"\n",
+        )
+        .unwrap()
+    }
+
+    fn agent(drives: bool) -> Agent {
+        let mut a = Agent::new(&fleet(), &EstimatorConfig::Odometry, "map", drives).unwrap();
+        let mut out = Outbox::default();
+        a.on_connected(t(0), &mut out);
+        check(&out);
+        a
+    }
+
+    fn t(ms: u64) -> Timestamp {
+        Timestamp::from_unix_millis(1_800_000_000_000 + ms).unwrap()
+    }
+
+    fn sample(x: f64, y: f64, v: f64) -> Sample {
+        Sample {
+            time: 0.0,
+            pose: Pose2::new(x, y, 0.0),
+            covariance: [[0.01, 0.0, 0.0], [0.0, 0.01, 0.0], [0.0, 0.0, 0.01]],
+            mode: EstimateMode::Fix,
+            v,
+            w: 0.0,
+        }
+    }
+
+    /// Every published message validates against its topic's schema; returns them as JSON.
+    fn check(out: &Outbox) -> Vec<(String, Value)> {
+        out.publish
+            .iter()
+            .map(|p| {
+                let v: Value = serde_json::from_slice(&p.payload).unwrap();
+                let topic = rfloc_vda5050::schema::topic_of(&p.topic).unwrap();
+                rfloc_vda5050::schema::validate(topic, &v)
+                    .unwrap_or_else(|e| panic!("{}: {e:#?}\n{v:#}", p.topic));
+                assert_eq!(p.retain, topic.retained());
+                (p.topic.clone(), v)
+            })
+            .collect()
+    }
+
+    fn last_state(out: &Outbox) -> Value {
+        check(out)
+            .into_iter()
+            .rev()
+            .find(|(t, _)| t.ends_with("/state"))
+            .map(|(_, v)| v)
+            .unwrap()
+    }
+
+    fn order(id: &str, serial: &str, version: &str, points: &[(f64, f64)]) -> Vec<u8> {
+        let nodes: Vec<Value> = points
+            .iter()
+            .enumerate()
+            .map(|(i, (x, y))| {
+                json!({"nodeId": format!("n{i}"), "sequenceId": 2 * i, "released": true,
+                "nodePosition": {"x": x, "y": y, "mapId": "map"}, "actions": []})
+            })
+            .collect();
+        let edges: Vec<Value> = (1..points.len())
+            .map(|i| {
+                json!({"edgeId": format!("e{i}"), "sequenceId": 2 * i - 1, "released": true,
+                "startNodeId": format!("n{}", i - 1), "endNodeId": format!("n{i}"), "actions": []})
+            })
+            .collect();
+        serde_json::to_vec(
+            &json!({"headerId": 1, "timestamp": "2027-01-01T00:00:00.000Z",
+            "version": version, "manufacturer": "rfloc", "serialNumber": serial,
+            "orderId": id, "orderUpdateId": 0, "nodes": nodes, "edges": edges}),
+        )
+        .unwrap()
+    }
+
+    fn instant(kind: &str, id: &str, params: Value) -> Vec<u8> {
+        serde_json::to_vec(&json!({"headerId": 2, "timestamp": "2027-01-01T00:00:00.000Z",
+            "version": "2.1.0", "manufacturer": "rfloc", "serialNumber": "r1",
+            "actions": [{"actionType": kind, "actionId": id, "blockingType": "NONE", "actionParameters": params}]}))
+        .unwrap()
+    }
+
+    fn error_types(state: &Value) -> Vec<String> {
+        state["errors"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|e| e["errorType"].as_str().unwrap().to_string())
+            .collect()
+    }
+
+    #[test]
+    fn connecting_publishes_online_factsheet_and_state() {
+        let mut a = Agent::new(&fleet(), &EstimatorConfig::Odometry, "map", true).unwrap();
+        let will = a
+            .connection(ConnectionState::Connectionbroken, t(0))
+            .unwrap();
+        assert_eq!(will.topic, "uagv/v2/rfloc/r1/connection");
+        assert!(will.retain && will.qos == 1);
+        let mut out = Outbox::default();
+        a.on_connected(t(1), &mut out);
+        let msgs = check(&out);
+        let topics: Vec<&str> = msgs
+            .iter()
+            .map(|(t, _)| t.rsplit('/').next().unwrap())
+            .collect();
+        assert_eq!(topics, ["connection", "factsheet", "state"]);
+        assert_eq!(msgs[0].1["connectionState"], "ONLINE");
+        assert_eq!(msgs[0].1["headerId"], 1, "the will had headerId 0");
+        let actions: Vec<&str> = msgs[1].1["protocolFeatures"]["agvActions"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|a| a["actionType"].as_str().unwrap())
+            .collect();
+        assert!(actions.contains(&"cancelOrder") && actions.contains(&"initPosition"));
+        assert_eq!(a.subscriptions()[0], "uagv/v2/rfloc/r1/order");
+    }
+
+    #[test]
+    fn an_order_becomes_goals_node_by_node_and_ends_with_a_stop() {
+        let mut a = agent(true);
+        let mut out = Outbox::default();
+        a.on_sample(&sample(0.0, 0.0, 0.0), t(10), &mut out);
+        let s = last_state(&out);
+        assert_eq!(s["agvPosition"]["positionInitialized"], true);
+        assert_eq!(s["agvPosition"]["localizationScore"], 0.5);
+        let mut out = Outbox::default();
+        a.on_message(
+            "uagv/v2/rfloc/r1/order",
+            &order("o1", "r1", "2.1.0", &[(0.0, 0.0), (1.0, 0.0), (1.0, 1.0)]),
+            t(20),
+            &mut out,
+        );
+        let goal = |x: f64, y: f64| {
+            Control::Goal(Some(Goal {
+                x,
+                y,
+                tolerance_m: 0.25,
+                max_speed: None,
+            }))
+        };
+        assert_eq!(out.controls, vec![goal(1.0, 0.0)]);
+        let s = last_state(&out);
+        assert_eq!(
+            (s["orderId"].as_str(), s["lastNodeId"].as_str()),
+            (Some("o1"), Some("n0"))
+        );
+        assert_eq!(s["nodeStates"].as_array().unwrap().len(), 2);
+        // Driving there: no new goal; reaching it: the next one.
+        let mut out = Outbox::default();
+        a.on_sample(&sample(0.5, 0.0, 0.3), t(30), &mut out);
+        assert!(out.controls.is_empty());
+        assert_eq!(last_state(&out)["driving"], true);
+        let mut out = Outbox::default();
+        a.on_sample(&sample(0.9, 0.05, 0.3), t(40), &mut out);
+        assert_eq!(out.controls, vec![goal(1.0, 1.0)]);
+        assert_eq!(last_state(&out)["lastNodeId"], "n1");
+        let mut out = Outbox::default();
+        a.on_sample(&sample(1.0, 0.9, 0.0), t(50), &mut out);
+        assert_eq!(out.controls, vec![Control::Goal(None)]);
+        assert!(out.stop_base);
+        let s = last_state(&out);
+        assert_eq!(s["lastNodeId"], "n2");
+        assert!(s["nodeStates"].as_array().unwrap().is_empty());
+    }
+
+    #[test]
+    fn bad_input_is_refused_with_vda_errors() {
+        let mut a = agent(true);
+        let mut out = Outbox::default();
+        a.on_sample(&sample(0.0, 0.0, 0.0), t(10), &mut out);
+        let topic = "uagv/v2/rfloc/r1/order";
+        for (bytes, kind) in [
+            (b"{not json".to_vec(), "validationError"),
+            (order("o1", "r1", "1.1.0", &[(0.0, 0.0)]), "validationError"),
+            (
+                order("o1", "other", "2.1.0", &[(0.0, 0.0)]),
+                "validationError",
+            ),
+            (
+                order("o2", "r1", "2.1.0", &[(5.0, 5.0), (6.0, 5.0)]),
+                "noRouteError",
+            ),
+        ] {
+            let mut out = Outbox::default();
+            a.on_message(topic, &bytes, t(20), &mut out);
+            assert!(out.controls.is_empty());
+            assert!(error_types(&last_state(&out)).contains(&kind.to_string()));
+        }
+        let mut out = Outbox::default();
+        a.on_message(
+            "uagv/v2/rfloc/r1/instantActions",
+            &instant("fly", "a1", json!([])),
+            t(30),
+            &mut out,
+        );
+        let s = last_state(&out);
+        assert!(error_types(&s).contains(&"unsupportedInstantAction".to_string()));
+        assert_eq!(s["actionStates"][0]["actionStatus"], "FAILED");
+        assert_eq!(a.rejections, 5);
+    }
+
+    #[test]
+    fn a_pipeline_that_cannot_drive_refuses_orders_that_go_anywhere() {
+        let mut a = agent(false);
+        let mut out = Outbox::default();
+        a.on_sample(&sample(0.0, 0.0, 0.0), t(10), &mut out);
+        let topic = "uagv/v2/rfloc/r1/order";
+        let mut out = Outbox::default();
+        a.on_message(
+            topic,
+            &order("o1", "r1", "2.1.0", &[(0.0, 0.0), (1.0, 0.0)]),
+            t(20),
+            &mut out,
+        );
+        assert_eq!(error_types(&last_state(&out)), ["noRouteError"]);
+        assert!(out.controls.is_empty());
+        // Where it stands, an order of one node is fine.
+        let mut out = Outbox::default();
+        a.on_message(
+            topic,
+            &order("o2", "r1", "2.1.0", &[(0.0, 0.0)]),
+            t(30),
+            &mut out,
+        );
+        let s = last_state(&out);
+        assert!(error_types(&s).is_empty());
+        assert_eq!(s["lastNodeId"], "n0");
+    }
+
+    #[test]
+    fn cancel_pause_and_init_position_reach_the_estimator() {
+        let mut a = agent(true);
+        let mut out = Outbox::default();
+        a.on_sample(&sample(0.0, 0.0, 0.0), t(10), &mut out);
+        let ia = "uagv/v2/rfloc/r1/instantActions";
+        a.on_message(
+            "uagv/v2/rfloc/r1/order",
+            &order("o1", "r1", "2.1.0", &[(0.0, 0.0), (2.0, 0.0)]),
+            t(20),
+            &mut Outbox::default(),
+        );
+        let mut out = Outbox::default();
+        a.on_message(ia, &instant("startPause", "p1", json!([])), t(30), &mut out);
+        assert_eq!(out.controls, vec![Control::Goal(None)]);
+        assert!(out.stop_base);
+        assert_eq!(last_state(&out)["paused"], true);
+        let mut out = Outbox::default();
+        a.on_message(ia, &instant("stopPause", "p2", json!([])), t(40), &mut out);
+        assert!(matches!(out.controls.as_slice(), [Control::Goal(Some(_))]));
+        let mut out = Outbox::default();
+        a.on_sample(&sample(0.5, 0.0, 0.3), t(50), &mut out);
+        let mut out = Outbox::default();
+        a.on_message(
+            ia,
+            &instant("cancelOrder", "c1", json!([])),
+            t(60),
+            &mut out,
+        );
+        assert_eq!(out.controls, vec![Control::Goal(None)]);
+        assert!(out.stop_base);
+        let s = last_state(&out);
+        assert_eq!(
+            s["actionStates"][2]["actionStatus"], "RUNNING",
+            "until the robot stands"
+        );
+        let mut out = Outbox::default();
+        a.on_sample(&sample(0.55, 0.0, 0.0), t(70), &mut out);
+        assert_eq!(
+            last_state(&out)["actionStates"][2]["actionStatus"],
+            "FINISHED"
+        );
+        // initPosition goes to the pipeline; its answer finishes or fails the action.
+        let params = json!([{"key": "x", "value": 1.0}, {"key": "y", "value": 2.0}, {"key": "theta", "value": 0.5}, {"key": "mapId", "value": "map"}]);
+        let mut out = Outbox::default();
+        a.on_message(ia, &instant("initPosition", "i1", params), t(80), &mut out);
+        assert!(
+            matches!(&out.controls[..], [Control::InitPosition { action_id, pose }] if action_id == "i1" && (pose.x - 1.0).abs() < 1e-12)
+        );
+        let mut out = Outbox::default();
+        a.on_init_result("i1", Err("no".into()), t(90), &mut out);
+        let s = last_state(&out);
+        assert_eq!(s["actionStates"][3]["actionStatus"], "FAILED");
+    }
+
+    #[test]
+    fn stale_and_failed_devices_are_errors_until_they_recover() {
+        let mut a = agent(true);
+        let mut out = Outbox::default();
+        a.on_device(
+            "xbee",
+            "xbee",
+            DeviceState::Stale,
+            "silent for more than 60 s",
+            t(10),
+            &mut out,
+        );
+        let s = last_state(&out);
+        assert_eq!(error_types(&s), ["deviceStale"]);
+        assert_eq!(s["errors"][0]["errorLevel"], "WARNING");
+        assert_eq!(
+            s["errors"][0]["errorReferences"][0]["referenceValue"],
+            "xbee"
+        );
+        let mut out = Outbox::default();
+        a.on_device(
+            "base",
+            "aria",
+            DeviceState::Failed,
+            "task ended",
+            t(20),
+            &mut out,
+        );
+        let s = last_state(&out);
+        assert_eq!(error_types(&s), ["deviceStale", "deviceFailed"]);
+        assert_eq!(s["errors"][1]["errorLevel"], "FATAL");
+        let mut out = Outbox::default();
+        a.on_device(
+            "base",
+            "aria",
+            DeviceState::Connected,
+            "robot",
+            t(30),
+            &mut out,
+        );
+        a.on_device(
+            "xbee",
+            "xbee",
+            DeviceState::Connected,
+            "data again",
+            t(40),
+            &mut out,
+        );
+        assert!(error_types(&last_state(&out)).is_empty());
+    }
+
+    #[test]
+    fn the_battery_voltage_becomes_a_charge() {
+        let mut a = agent(true);
+        a.on_battery(11.9);
+        let mut out = Outbox::default();
+        a.on_message(
+            "uagv/v2/rfloc/r1/instantActions",
+            &instant("stateRequest", "s1", json!([])),
+            t(10),
+            &mut out,
+        );
+        let s = last_state(&out);
+        assert_eq!(s["batteryState"]["batteryVoltage"], 11.9);
+        assert_eq!(s["batteryState"]["batteryCharge"], 50.0);
+    }
+
+    #[test]
+    fn nothing_is_published_while_the_broker_is_away() {
+        let mut a = agent(true);
+        a.on_disconnected();
+        let mut out = Outbox::default();
+        a.on_sample(&sample(0.0, 0.0, 0.3), t(10), &mut out);
+        a.tick(t(40_000), &mut out);
+        assert!(out.publish.is_empty());
+        a.on_connected(t(50_000), &mut out);
+        assert_eq!(check(&out).len(), 3);
+    }
+}
