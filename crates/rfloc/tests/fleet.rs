@@ -276,10 +276,10 @@ async fn fleet_hf_robot_refuses_orders_and_turns_for_init_position() {
             "127.0.0.1:2948",
             format!("127.0.0.1:{}", common::free_port()),
         ),
-        ("stdout = true".into(), "stdout = false".into()),
-        ("[simulation]".into(), fleet),
-        ("time_scale = 5.0".into(), "time_scale = 10.0".into()),
-        ("duration_s = 40.0".into(), "duration_s = 2000.0".into()),
+        ("stdout = true", "stdout = false".into()),
+        ("[simulation]", fleet),
+        ("time_scale = 5.0", "time_scale = 10.0".into()),
+        ("duration_s = 40.0", "duration_s = 2000.0".into()),
     ] {
         let edited = text.replace(old, &new);
         assert_ne!(edited, text, "config/sim.toml has no {old:?}");
