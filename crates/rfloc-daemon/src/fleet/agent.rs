@@ -209,6 +209,14 @@ impl Agent {
         out.publish.extend(self.message(Topic::State, &msg));
     }
 
+    /// A `state` message now, due or not (benchmarks; a `stateRequest` gets one through the
+    /// vehicle).
+    pub fn state_now(&mut self, now: Timestamp) -> Option<Publish> {
+        self.refresh_battery();
+        let msg = self.vehicle.state(now);
+        self.message(Topic::State, &msg)
+    }
+
     /// A state when one is due (a change, a request, or the interval), and the factsheet when
     /// one was requested.
     fn flush(&mut self, now: Timestamp, out: &mut Outbox) {
