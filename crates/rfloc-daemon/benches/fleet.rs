@@ -42,12 +42,16 @@ fn busy_agent() -> Agent {
     a.on_connected(t(0), &mut out);
     a.on_sample(&sample(0), t(1), &mut out);
     let nodes: Vec<_> = (0..10)
-        .map(|i| json!({"nodeId": format!("n{i}"), "sequenceId": 2 * i, "released": true,
-            "nodePosition": {"x": f64::from(i), "y": 0.0, "mapId": "map"}, "actions": []}))
+        .map(|i| {
+            json!({"nodeId": format!("n{i}"), "sequenceId": 2 * i, "released": true,
+            "nodePosition": {"x": f64::from(i), "y": 0.0, "mapId": "map"}, "actions": []})
+        })
         .collect();
     let edges: Vec<_> = (1..10)
-        .map(|i| json!({"edgeId": format!("e{i}"), "sequenceId": 2 * i - 1, "released": true,
-            "startNodeId": format!("n{}", i - 1), "endNodeId": format!("n{i}"), "actions": []}))
+        .map(|i| {
+            json!({"edgeId": format!("e{i}"), "sequenceId": 2 * i - 1, "released": true,
+            "startNodeId": format!("n{}", i - 1), "endNodeId": format!("n{i}"), "actions": []})
+        })
         .collect();
     let order = json!({"headerId": 1, "timestamp": "2027-01-01T00:00:00.000Z", "version": "2.1.0",
         "manufacturer": "rfloc", "serialNumber": "bench-1", "orderId": "o1", "orderUpdateId": 0,

@@ -40,13 +40,16 @@ fn cpu_seconds() -> anyhow::Result<f64> {
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
-    let broker = args.get(1).cloned().unwrap_or_else(|| "127.0.0.1:1883".into());
+    let broker = args
+        .get(1)
+        .cloned()
+        .unwrap_or_else(|| "127.0.0.1:1883".into());
     let secs: f64 = args.get(2).map_or(Ok(60.0), |s| s.parse())?;
     let text = format!(
         "[robot]\nname = \"cpu\"\n\n[estimator]\npipeline = \"odometry\"\n\n[[device]]\nname = \"base\"\n[device.driver]\nkind = \"aria\"\n\n[fleet]\nbroker = \"{broker}\"\nmanufacturer = \"rfloc\"\nserial_number = \"cpu-1\"\nvisualization_hz = 10.0\n\n[simulation]\n"
     );
-    let cfg = RobotConfig::parse(&text, "fleet-cpu.toml", None)
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let cfg =
+        RobotConfig::parse(&text, "fleet-cpu.toml", None).map_err(|e| anyhow::anyhow!("{e}"))?;
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()

@@ -333,3 +333,74 @@ async fn fleet_hf_robot_refuses_orders_and_turns_for_init_position() {
     assert!(status.success(), "{status:?}\n{log}");
     assert!(log.contains("initialisation turn started"), "{log}");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn fleet_vehicle_connects_over_tls_with_a_password() {
+    let Some(mosquitto) = require_mosquitto("fleet_vehicle_connects_over_tls_with_a_password")
+    else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let Some((broker, tls_port, ca)) =
+        Broker::start_tls(&mosquitto, dir.path(), "robot-t", "pa55-word").await
+    else {
+        return;
+    };
+    let mut m = Manager::connect(broker.port, "manager-t").await;
+    let tls = |pw_file: &str| {
+        format!(
+            "serial_number = \"robot-t\"\ntls = true\nca_file = {:?}\nusername = \"robot-t\"\npassword_file = \"{pw_file}\"",
+            ca.display().to_string()
+        )
+    };
+    for (file, text) in [("good-pw", "pa55-word\n"), ("bad-pw", "guess\n")] {
+        std::fs::write(dir.path().join(file), text).unwrap();
+    }
+    let address = format!("127.0.0.1:{tls_port}");
+    // The right password: ONLINE over TLS, and the password is in no log line.
+    let robot = dir.path().join("good");
+    std::fs::create_dir_all(&robot).unwrap();
+    std::fs::copy(dir.path().join("good-pw"), robot.join("good-pw")).unwrap();
+    let good = tls("good-pw");
+    let path = common::fleet::robot_file(
+        &robot,
+        common::free_port(),
+        &address,
+        "robot-t",
+        &[("serial_number = \"robot-t\"", good.as_str())],
+    );
+    let daemon = common::Daemon::start(&path, "debug");
+    let online = m
+        .wait_for("robot-t", "connection", 30.0, |c| {
+            c["connectionState"] == "ONLINE"
+        })
+        .await;
+    if online.is_none() {
+        daemon.fail_with_log_tail("no ONLINE over TLS").await;
+    }
+    let (status, log) = daemon.terminate().await;
+    assert!(status.success(), "{status:?}\n{log}");
+    assert!(!log.contains("pa55-word"), "the password was logged");
+    // A wrong password: refused by the broker, retried, never ONLINE.
+    let robot = dir.path().join("bad");
+    std::fs::create_dir_all(&robot).unwrap();
+    std::fs::copy(dir.path().join("bad-pw"), robot.join("bad-pw")).unwrap();
+    let bad = tls("bad-pw");
+    let path = common::fleet::robot_file(
+        &robot,
+        common::free_port(),
+        &address,
+        "robot-u",
+        &[("serial_number = \"robot-u\"", bad.as_str())],
+    );
+    let daemon = common::Daemon::start(&path, "info");
+    let online = m
+        .wait_for("robot-u", "connection", 5.0, |c| {
+            c["connectionState"] == "ONLINE"
+        })
+        .await;
+    let (_, log) = daemon.terminate().await;
+    assert!(online.is_none(), "connected with a wrong password");
+    assert!(log.contains("fleet broker unreachable"), "{log}");
+    assert!(!log.contains("guess"), "the password was logged");
+}

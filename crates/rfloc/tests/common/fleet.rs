@@ -61,14 +61,16 @@ impl Broker {
     /// Starts (again) on the same port.
     pub async fn restart(&mut self) {
         let conf = self.dir.join(format!("mosquitto-{}.conf", self.port));
-        std::fs::write(
-            &conf,
-            format!(
-                "listener {} 127.0.0.1\nallow_anonymous true\npersistence false\n",
-                self.port
-            ),
-        )
-        .unwrap();
+        if !conf.exists() {
+            std::fs::write(
+                &conf,
+                format!(
+                    "listener {} 127.0.0.1\nallow_anonymous true\npersistence false\n",
+                    self.port
+                ),
+            )
+            .unwrap();
+        }
         let log =
             std::fs::File::create(self.dir.join(format!("mosquitto-{}.log", self.port))).unwrap();
         let child = std::process::Command::new(&self.binary)
@@ -86,6 +88,109 @@ impl Broker {
             tokio::time::sleep(Duration::from_millis(25)).await;
         }
         panic!("mosquitto did not listen on port {}", self.port);
+    }
+
+    /// A broker with a plain anonymous listener (`port`, for the manager) and a TLS listener on
+    /// `tls_port` that takes only `user`/`password`, its certificate (for 127.0.0.1) signed by
+    /// a CA made here; returns the broker, the TLS port and the CA file. `None` (after saying
+    /// why) without `openssl` or `mosquitto_passwd`.
+    pub async fn start_tls(
+        binary: &Path,
+        dir: &Path,
+        user: &str,
+        password: &str,
+    ) -> Option<(Self, u16, PathBuf)> {
+        let run = |args: &[&str]| {
+            std::process::Command::new(args[0])
+                .args(&args[1..])
+                .current_dir(dir)
+                .stdout(Stdio::null())
+                .stderr(Stdio::null())
+                .status()
+                .is_ok_and(|s| s.success())
+        };
+        std::fs::write(dir.join("san.ext"), "subjectAltName=IP:127.0.0.1\n").unwrap();
+        let ec = [
+            "-newkey",
+            "ec",
+            "-pkeyopt",
+            "ec_paramgen_curve:prime256v1",
+            "-nodes",
+        ];
+        let made = run(&[
+            &["openssl", "req", "-x509"][..],
+            &ec[..],
+            &[
+                "-keyout",
+                "ca.key",
+                "-out",
+                "ca.pem",
+                "-days",
+                "2",
+                "-subj",
+                "/CN=rfloc test CA",
+            ][..],
+        ]
+        .concat())
+            && run(&[
+                &["openssl", "req"][..],
+                &ec[..],
+                &[
+                    "-keyout",
+                    "server.key",
+                    "-out",
+                    "server.csr",
+                    "-subj",
+                    "/CN=127.0.0.1",
+                ][..],
+            ]
+            .concat())
+            && run(&[
+                "openssl",
+                "x509",
+                "-req",
+                "-in",
+                "server.csr",
+                "-CA",
+                "ca.pem",
+                "-CAkey",
+                "ca.key",
+                "-CAcreateserial",
+                "-out",
+                "server.pem",
+                "-days",
+                "2",
+                "-extfile",
+                "san.ext",
+            ])
+            && run(&["mosquitto_passwd", "-b", "-c", "passwd", user, password]);
+        if !made {
+            eprintln!("SKIPPED: openssl or mosquitto_passwd missing or failing; no TLS broker");
+            return None;
+        }
+        let port = super::free_port();
+        let tls_port = super::free_port();
+        let d = dir.display();
+        std::fs::write(
+            dir.join(format!("mosquitto-{port}.conf")),
+            format!(
+                // `user root`: a broker started as root keeps the rights to read the key
+                // files in the test's folder (it has no effect on other users).
+                "user root\nper_listener_settings true\npersistence false\n\
+                 listener {port} 127.0.0.1\nallow_anonymous true\n\
+                 listener {tls_port} 127.0.0.1\nallow_anonymous false\npassword_file {d}/passwd\n\
+                 cafile {d}/ca.pem\ncertfile {d}/server.pem\nkeyfile {d}/server.key\n"
+            ),
+        )
+        .unwrap();
+        let mut b = Self {
+            binary: binary.to_path_buf(),
+            dir: dir.to_path_buf(),
+            port,
+            child: None,
+        };
+        b.restart().await;
+        Some((b, tls_port, dir.join("ca.pem")))
     }
 
     /// Kills the broker (SIGKILL: no goodbye to its clients).
