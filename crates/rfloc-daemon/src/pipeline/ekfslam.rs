@@ -654,4 +654,60 @@ mod tests {
         p.handle(&odo(0.2, 0.0, 0.0, 0.0, 0.0));
         assert!(p.take_requests().is_empty());
     }
+
+    #[test]
+    fn a_fleet_goal_is_driven_to_and_taken_away() {
+        let mut s = settings(Vec::new());
+        s.sweep_every_s = 100.0;
+        let mut p = EkfSlamPipeline::new(&s).unwrap();
+        assert!(p.drives_to_goals());
+        assert_eq!(
+            p.init_position(Pose2::new(1.0, 0.0, 0.0)),
+            InitOutcome::Done
+        );
+        assert!(p.set_goal(Some(Goal {
+            x: 3.0,
+            y: 0.0,
+            tolerance_m: 0.25,
+            max_speed: Some(0.1)
+        })));
+        p.handle(&odo(0.0, 0.0, 0.0, 0.0, 0.0));
+        p.handle(&odo(0.1, 0.0, 0.0, 0.0, 0.0));
+        let r = p.take_requests();
+        assert!(
+            matches!(r.as_slice(), [Request::Velocity { v, .. }] if *v > 0.0 && *v <= 0.1),
+            "{r:?}"
+        );
+        // Driven there in small steps: done, stopped within 0.8 of the tolerance (0.2 m).
+        let (mut t, mut x) = (0.1, 0.0);
+        let mut last = Vec::new();
+        while !p.is_done() && t < 100.0 {
+            t += 0.1;
+            x += 0.01;
+            p.handle(&odo(t, x, 0.0, 0.0, 0.1));
+            last = p.take_requests();
+        }
+        assert!(p.is_done());
+        assert!(
+            (1.0 + x - 3.0).abs() <= 0.2 + 0.011,
+            "stopped at {}",
+            1.0 + x
+        );
+        assert_eq!(last, vec![Request::Velocity { v: 0.0, w: 0.0 }]);
+        // A new goal drives again; taking it away stops the base.
+        p.set_goal(Some(Goal {
+            x: 0.0,
+            y: 0.0,
+            tolerance_m: 0.25,
+            max_speed: None,
+        }));
+        p.handle(&odo(t + 0.1, x, 0.0, 0.0, 0.0));
+        assert!(!p.is_done());
+        p.take_requests();
+        p.set_goal(None);
+        assert_eq!(
+            p.take_requests(),
+            vec![Request::Velocity { v: 0.0, w: 0.0 }]
+        );
+    }
 }

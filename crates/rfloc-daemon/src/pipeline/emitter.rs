@@ -574,4 +574,45 @@ mod tests {
         });
         assert_eq!(p.counters().scans, 1);
     }
+
+    #[test]
+    fn a_fleet_goal_replaces_the_emitter_and_none_holds_the_robot() {
+        let mut p = EmitterPipeline::new(&settings()).unwrap();
+        assert!(p.drives_to_goals());
+        p.handle(&odometry(0.0, 0.0));
+        p.take_requests();
+        assert!(p.set_goal(Some(Goal {
+            x: 0.1,
+            y: 0.0,
+            tolerance_m: 0.25,
+            max_speed: None
+        })));
+        p.handle(&odometry(0.2, 0.0));
+        assert_eq!(
+            p.take_requests(),
+            vec![Request::Velocity { v: 0.0, w: 0.0 }],
+            "already there"
+        );
+        p.set_goal(None);
+        assert_eq!(
+            p.take_requests(),
+            vec![Request::Velocity { v: 0.0, w: 0.0 }]
+        );
+        for k in 2..6 {
+            p.handle(&odometry(0.2 * f64::from(k), 0.0));
+            for r in p.take_requests() {
+                assert_eq!(r, Request::Velocity { v: 0.0, w: 0.0 }, "held still");
+            }
+        }
+        assert_eq!(
+            p.init_position(Pose2::new(2.0, 1.0, 0.0)),
+            InitOutcome::Done
+        );
+        let e = p.handle(&odometry(1.2, 0.5)).unwrap();
+        assert!(
+            (e.pose.x - 2.5).abs() < 1e-9 && (e.pose.y - 1.0).abs() < 1e-9,
+            "{:?}",
+            e.pose
+        );
+    }
 }

@@ -460,4 +460,44 @@ mod tests {
         }
         eprintln!("50 tracking steps took {:?}", started.elapsed());
     }
+
+    #[test]
+    fn init_position_turns_the_robot_and_reports_a_refusal() {
+        let mut p = HfGridPipeline::new(&HfGridSettings::default(), TagGrid::seed002_test_field());
+        assert_eq!(p.init_position(Pose2::default()), InitOutcome::Pending);
+        let mut t = 0.0;
+        let mut theta = 0.0;
+        let mut turns = 0;
+        // No tag under the antenna: the turn goes round, is refused, and stops.
+        while p.self_turn.is_some() && t < 200.0 {
+            p.handle(&DeviceEvent::Odometry {
+                device: "base".into(),
+                t,
+                pose: Pose2::new(0.0, 0.0, theta),
+                v: 0.0,
+                w: SELF_TURN_RATE,
+            });
+            for r in p.take_requests() {
+                if r == (Request::Velocity {
+                    v: 0.0,
+                    w: SELF_TURN_RATE,
+                }) {
+                    turns += 1;
+                }
+            }
+            t += 0.1;
+            theta += SELF_TURN_RATE * 0.1;
+        }
+        assert!(turns > 150, "{turns} turn requests");
+        let result = p.take_init_result().expect("a result");
+        assert!(result.is_err(), "{result:?}");
+        p.handle(&DeviceEvent::Odometry {
+            device: "base".into(),
+            t,
+            pose: Pose2::new(0.0, 0.0, theta),
+            v: 0.0,
+            w: 0.0,
+        });
+        assert!(p.take_requests().is_empty(), "the turn stopped for good");
+    }
 }

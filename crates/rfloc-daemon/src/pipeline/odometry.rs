@@ -78,4 +78,27 @@ mod tests {
         );
         assert_eq!(b.mode, EstimateMode::Degraded);
     }
+
+    #[test]
+    fn init_position_places_the_odometry_frame() {
+        let mut p = OdometryPipeline::default();
+        let ev = |x: f64| DeviceEvent::Odometry {
+            device: "base".into(),
+            t: x,
+            pose: Pose2::new(x, 0.0, 0.0),
+            v: 0.0,
+            w: 0.0,
+        };
+        p.handle(&ev(1.0));
+        assert_eq!(
+            p.init_position(Pose2::new(5.0, 5.0, std::f64::consts::FRAC_PI_2)),
+            InitOutcome::Done
+        );
+        let e = p.handle(&ev(2.0)).unwrap();
+        assert!(
+            (e.pose.x - 5.0).abs() < 1e-9 && (e.pose.y - 6.0).abs() < 1e-9,
+            "{:?}",
+            e.pose
+        );
+    }
 }
