@@ -214,7 +214,8 @@ pub async fn run_with_pipeline(
             .map(|r| r.queue.clone()),
         Arc::clone(&resources),
         stop.clone(),
-    )?;
+    )
+    .inspect_err(|_| stop.cancel())?;
     let (fleet_link, fleet_devices, fleet_task) = match fleet {
         Some(f) => (Some(f.link), Some(f.devices), Some(f.task)),
         None => (None, None, None),
