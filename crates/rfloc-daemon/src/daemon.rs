@@ -214,11 +214,31 @@ pub async fn run_with_pipeline(
             events: ev_tx.clone(),
             base,
             estimator: &cfg.estimator,
-            pipeline_drives_base: pipeline::drives_base(&cfg.estimator),
+            pipeline_drives_base: pipeline::drives_base(&cfg.estimator) || cfg.fleet.is_some(),
             stop: stop.clone(),
         });
     }
     drop(ev_tx);
+
+    // The fleet link (`[fleet]`): a task of its own, fed by the estimator thread and the router.
+    let fleet = crate::fleet::start(
+        &cfg,
+        pipeline.drives_to_goals(),
+        routes
+            .iter()
+            .find(|r| {
+                r.driver
+                    .handles(&pipeline::Request::Velocity { v: 0.0, w: 0.0 })
+            })
+            .map(|r| r.queue.clone()),
+        Arc::clone(&resources),
+        stop.clone(),
+    )
+    .inspect_err(|_| stop.cancel())?;
+    let (fleet_link, fleet_devices, fleet_task) = match fleet {
+        Some(f) => (Some(f.link), Some(f.devices), Some(f.task)),
+        None => (None, None, None),
+    };
 
     // The estimator thread.
     // A recording that cannot be written (a full disk) does not stop the robot.
@@ -251,6 +271,7 @@ pub async fn run_with_pipeline(
             scorer: sim.as_ref().and_then(|s| s.scorer()),
             ack: None,
             viz: viz.clone(),
+            fleet: fleet_link,
         },
         print_observations: false,
     };
@@ -277,6 +298,7 @@ pub async fn run_with_pipeline(
         health,
         max_down: crate::time::seconds(cfg.supervision.max_down_s),
         viz: viz.clone(),
+        fleet: fleet_devices,
     };
     router.run(ev_rx, &stop, deadline).await;
 
@@ -314,6 +336,14 @@ pub async fn run_with_pipeline(
         Ok(_) => tracing::error!("the estimator thread ended abnormally"),
         Err(_) => tracing::error!("the estimator thread did not stop within 5 s"),
     }
+    if let Some(task) = fleet_task {
+        if tokio::time::timeout(Duration::from_secs(5), task)
+            .await
+            .is_err()
+        {
+            tracing::warn!("the fleet link did not stop within 5 s");
+        }
+    }
     if let Some(sim) = sim {
         sim.shutdown().await;
     }
@@ -344,6 +374,8 @@ struct Router {
     max_down: Duration,
     /// Foxglove channels, for device status.
     viz: Option<crate::viz::VizOut>,
+    /// DEVICE states for the fleet link's `state.errors`.
+    fleet: Option<crate::fleet::DeviceTap>,
 }
 
 impl Router {
@@ -367,6 +399,9 @@ impl Router {
                 _ = tick.tick() => {
                     for (name, driver, limit) in self.stale.check() {
                         tracing::warn!(device = %name, "device silent");
+                        if let Some(f) = &self.fleet {
+                            f.note(&name, driver, DeviceState::Stale, &format!("silent for more than {limit:.1} s"));
+                        }
                         self.hub.publish_device(&name, message::device_json(&name, driver, DeviceState::Stale, &format!("silent for more than {limit:.1} s"), SystemTime::now()));
                     }
                     if self.healthy(watchdog) {
@@ -413,12 +448,18 @@ impl Router {
             if let Some(v) = &self.viz {
                 v.status(device, *state, detail);
             }
+            if let Some(f) = &self.fleet {
+                f.note(device, driver, *state, detail);
+            }
             return;
         }
         self.health.up(event.device());
         if self.stale.seen(event.device()) {
             let name = event.device().to_string();
             let driver = self.stale.driver(&name);
+            if let Some(f) = &self.fleet {
+                f.note(&name, driver, DeviceState::Connected, "data again");
+            }
             self.hub.publish_device(
                 &name,
                 message::device_json(

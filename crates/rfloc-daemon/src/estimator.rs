@@ -63,6 +63,8 @@ pub struct Outputs {
     pub ack: Option<mpsc::UnboundedSender<u64>>,
     /// Foxglove channels (a live view, an MCAP recording).
     pub viz: Option<crate::viz::VizOut>,
+    /// The fleet link (`[fleet]`): estimates out, goals and initialisations in.
+    pub fleet: Option<crate::fleet::EstimatorLink>,
 }
 
 /// Liveness of the thread, for the watchdog.
@@ -175,6 +177,9 @@ impl Worker {
                 self.emit(&event.to_json());
             }
             if let Some(p) = self.pipeline.as_mut() {
+                if let Some(f) = self.outputs.fleet.as_mut() {
+                    f.before_event(p.as_mut(), &event);
+                }
                 let estimate = p.handle(&event);
                 let requests = p.take_requests();
                 let targets = p.take_targets();
@@ -193,6 +198,9 @@ impl Worker {
                     }
                     if let Some(v) = &self.outputs.viz {
                         v.pose(&est, odom.as_ref());
+                    }
+                    if let Some(f) = self.outputs.fleet.as_mut() {
+                        f.estimate(&est);
                     }
                     match message::pose_json_with_odometry(&est, odom.as_ref(), &self.format) {
                         Ok(line) => {

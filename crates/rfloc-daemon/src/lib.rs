@@ -9,6 +9,7 @@ pub mod daemon;
 pub mod devices;
 pub mod estimator;
 pub mod events;
+pub mod fleet;
 pub mod message;
 pub mod notify;
 pub mod pipeline;

@@ -454,6 +454,7 @@ pub async fn replay_lines(dir: &Path, opts: &ReplayOptions) -> anyhow::Result<Ve
             scorer: None,
             ack: Some(ack_tx),
             viz: viz.clone(),
+            fleet: None,
         },
         print_observations: estimator_cfg.is_none(),
     };

@@ -3,6 +3,7 @@
 //!
 //! - [`diag`]: errors located by spans, and the range checks every section uses;
 //! - [`sections`]: `[robot]`, `[pose]`, `[log]`, `[state]`;
+//! - [`fleet`]: `[fleet]`, the robot as a VDA 5050 vehicle over MQTT;
 //! - [`estimator`]: `[estimator]`, one settings type per pipeline;
 //! - each device's `[device.driver]` is parsed and checked by its kind in the driver registry
 //!   ([`crate::devices::REGISTRY`]), next to the driver.
@@ -12,6 +13,7 @@
 
 mod diag;
 mod estimator;
+mod fleet;
 mod sections;
 
 use std::path::{Path, PathBuf};
@@ -29,6 +31,7 @@ pub use estimator::{
     EkfSlamSettings, EmitterSettings, EstimatorConfig, GridTag, HfGridSettings, SnapshotSettings,
     WheelSlipSettings, PIPELINES,
 };
+pub use fleet::{read_password, FleetConfig};
 pub use sections::{
     FoxgloveConfig, LogConfig, PoseOutputConfig, RobotSection, StateConfig, SupervisionConfig,
 };
@@ -54,6 +57,8 @@ pub struct RobotConfig {
     pub state: StateConfig,
     pub supervision: SupervisionConfig,
     pub foxglove: FoxgloveConfig,
+    /// `[fleet]`: a VDA 5050 fleet manager over MQTT, when the robot has one.
+    pub fleet: Option<FleetConfig>,
     /// Present in simulation configs: devices are emulated (by the lab) on ptys and loopback
     /// sockets. The daemon only knows that the section is there.
     pub simulation: bool,
@@ -131,6 +136,7 @@ const SECTIONS: &[&str] = &[
     "state",
     "supervision",
     "foxglove",
+    "fleet",
 ];
 
 impl RobotConfig {
@@ -213,6 +219,8 @@ struct Parts {
     state: Option<StateConfig>,
     supervision: Option<SupervisionConfig>,
     foxglove: Option<FoxgloveConfig>,
+    /// `Some(None)`: no `[fleet]` section; `None`: one that did not parse.
+    fleet: Option<Option<FleetConfig>>,
     simulation: bool,
 }
 
@@ -264,6 +272,9 @@ impl Parts {
         if let Some(f) = &self.foxglove {
             f.check(&mut Checks::new(diag, "foxglove"));
         }
+        if let Some(Some(f)) = &self.fleet {
+            f.check(&mut Checks::new(diag, "fleet"), &env);
+        }
     }
 
     fn assemble(self, text: &str, file: &str, dir: Option<&Path>) -> Option<RobotConfig> {
@@ -276,6 +287,7 @@ impl Parts {
             state: self.state?,
             supervision: self.supervision?,
             foxglove: self.foxglove?,
+            fleet: self.fleet?,
             simulation: self.simulation,
             source: Arc::new(ConfigSource {
                 file: file.to_string(),
@@ -384,6 +396,7 @@ fn parse_root<'i>(diag: &mut Diagnostics<'i>, dir: Option<&Path>, opts: &LoadOpt
         state: None,
         supervision: None,
         foxglove: None,
+        fleet: None,
         simulation: false,
     };
     let Some(table) = diag::table(root) else {
@@ -452,6 +465,10 @@ fn parse_root<'i>(diag: &mut Diagnostics<'i>, dir: Option<&Path>, opts: &LoadOpt
     parts.supervision = match diag::get(root, "supervision") {
         Some(n) => diag.deserialize::<SupervisionConfig>("supervision", n),
         None => Some(SupervisionConfig::default()),
+    };
+    parts.fleet = match diag::get(root, "fleet") {
+        Some(n) => diag.deserialize::<FleetConfig>("fleet", n).map(Some),
+        None => Some(None),
     };
     parts.devices = parse_devices(diag, root);
     parts.robot = robot;

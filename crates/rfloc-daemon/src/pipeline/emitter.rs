@@ -20,7 +20,7 @@ use rfloc_pose::{Pose2, PoseEstimate};
 
 use crate::config::{AntennaSide, EmitterSettings};
 use crate::events::DeviceEvent;
-use crate::pipeline::{OdometryPipeline, Pipeline, Request, TargetEstimate};
+use crate::pipeline::{Goal, InitOutcome, OdometryPipeline, Pipeline, Request, TargetEstimate};
 
 pub mod homing;
 
@@ -103,6 +103,19 @@ pub struct EmitterPipeline {
     /// The bumper rings as the base last reported them.
     bumpers: Bumpers,
     counters: EmitterCounters,
+    /// What a fleet manager asked for: homing (`None`), a goal, or standing still.
+    fleet: FleetDrive,
+}
+
+/// The emitter robot under a fleet manager.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum FleetDrive {
+    /// No goal was ever set: home on the emitter.
+    Homing,
+    /// Drive to this goal with the navigator (grid, A*, reflexes) instead of the emitter.
+    Goal(Goal),
+    /// The goal was taken away: stand still.
+    Hold,
 }
 
 fn slot(side: AntennaSide) -> usize {
@@ -158,6 +171,7 @@ impl EmitterPipeline {
             targets: Vec::new(),
             bumpers: Bumpers::default(),
             counters: EmitterCounters::default(),
+            fleet: FleetDrive::Homing,
         })
     }
 
@@ -237,6 +251,19 @@ impl EmitterPipeline {
                 }
             }
             None => self.counters.incomplete += 1,
+        }
+        match self.fleet {
+            FleetDrive::Homing => {}
+            FleetDrive::Hold => {
+                self.requests.push(Request::Velocity { v: 0.0, w: 0.0 });
+                return;
+            }
+            FleetDrive::Goal(g) => {
+                if (pose.x - g.x).hypot(pose.y - g.y) <= 0.8 * g.tolerance_m {
+                    self.requests.push(Request::Velocity { v: 0.0, w: 0.0 });
+                    return;
+                }
+            }
         }
         let cmd = self.homing.command(t, pose, self.bumpers);
         let arrived = cmd.state == NavigatorState::Arrived;
@@ -377,6 +404,34 @@ impl Pipeline for EmitterPipeline {
 
     fn take_targets(&mut self) -> Vec<TargetEstimate> {
         std::mem::take(&mut self.targets)
+    }
+
+    fn drives_to_goals(&self) -> bool {
+        true
+    }
+
+    /// A goal takes the emitter's place as the navigator's target (the navigator stops on its
+    /// own at `arrival_distance_m`, the pipeline within 0.8 of the goal's tolerance); `None`
+    /// holds the robot still. The emitter is still tracked meanwhile.
+    fn set_goal(&mut self, goal: Option<Goal>) -> bool {
+        self.fleet = goal.map_or(FleetDrive::Hold, FleetDrive::Goal);
+        self.homing
+            .set_goal(goal.map(|g| rfloc_emitter::Point2::new(g.x, g.y)));
+        if goal.is_none() {
+            self.requests.push(Request::Velocity { v: 0.0, w: 0.0 });
+        }
+        true
+    }
+
+    /// The start becomes what makes the current odometry come out at `pose`.
+    fn init_position(&mut self, pose: Pose2) -> InitOutcome {
+        // start ⊕ odometry = the pose published last; the new start keeps that odometry.
+        let odometry = self
+            .pose
+            .map_or_else(Pose2::default, |p| p.relative_to(&self.start));
+        self.start = pose.compose(&Pose2::default().relative_to(&odometry));
+        self.pose = Some(pose);
+        InitOutcome::Done
     }
 }
 
@@ -531,5 +586,46 @@ mod tests {
             beams,
         });
         assert_eq!(p.counters().scans, 1);
+    }
+
+    #[test]
+    fn a_fleet_goal_replaces_the_emitter_and_none_holds_the_robot() {
+        let mut p = EmitterPipeline::new(&settings()).unwrap();
+        assert!(p.drives_to_goals());
+        p.handle(&odometry(0.0, 0.0));
+        p.take_requests();
+        assert!(p.set_goal(Some(Goal {
+            x: 0.1,
+            y: 0.0,
+            tolerance_m: 0.25,
+            max_speed: None
+        })));
+        p.handle(&odometry(0.2, 0.0));
+        assert_eq!(
+            p.take_requests(),
+            vec![Request::Velocity { v: 0.0, w: 0.0 }],
+            "already there"
+        );
+        p.set_goal(None);
+        assert_eq!(
+            p.take_requests(),
+            vec![Request::Velocity { v: 0.0, w: 0.0 }]
+        );
+        for k in 2..6 {
+            p.handle(&odometry(0.2 * f64::from(k), 0.0));
+            for r in p.take_requests() {
+                assert_eq!(r, Request::Velocity { v: 0.0, w: 0.0 }, "held still");
+            }
+        }
+        assert_eq!(
+            p.init_position(Pose2::new(2.0, 1.0, 0.0)),
+            InitOutcome::Done
+        );
+        let e = p.handle(&odometry(1.2, 0.5)).unwrap();
+        assert!(
+            (e.pose.x - 2.5).abs() < 1e-9 && (e.pose.y - 1.0).abs() < 1e-9,
+            "{:?}",
+            e.pose
+        );
     }
 }

@@ -1,6 +1,8 @@
 //! The `rfloc` binary as a child process, for end-to-end tests.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, dead_code)]
 
+pub mod fleet;
+
 use std::process::{Child, ExitStatus, Stdio};
 use std::thread::JoinHandle;
 use std::time::Duration;

@@ -39,6 +39,8 @@ pub struct EmitterHoming {
     navigator: EmitterNavigator,
     scan: Vec<ScanBeam>,
     target: Option<Point2>,
+    /// A goal that replaces the emitter as the navigator's target (a fleet manager's order).
+    goal: Option<Point2>,
     last_rss_time: Option<f64>,
     rejected_rss: u64,
     /// Recent raw positions, newest last (at most [`RECENT_RAW`]).
@@ -74,6 +76,7 @@ impl EmitterHoming {
             navigator: EmitterNavigator::new(config.navigator),
             scan: Vec::new(),
             target: None,
+            goal: None,
             last_rss_time: None,
             rejected_rss: 0,
             recent_raw: VecDeque::with_capacity(RECENT_RAW + 1),
@@ -168,6 +171,11 @@ impl EmitterHoming {
         }
     }
 
+    /// Drives to `goal` instead of the emitter (`None`: the emitter again).
+    pub fn set_goal(&mut self, goal: Option<Point2>) {
+        self.goal = goal;
+    }
+
     /// Times the filter was re-initialised.
     #[must_use]
     pub fn reinitialisations(&self) -> u64 {
@@ -188,7 +196,7 @@ impl EmitterHoming {
     /// long (every wall costs the signal several dB), and a goal outside the map would make the
     /// full system give up planning and drive straight at the wall.
     pub fn command(&mut self, t: f64, pose: Pose2, bumpers: Bumpers) -> NavigationCommand {
-        let target = self.target.map(|p| self.inside_map(p));
+        let target = self.goal.or(self.target).map(|p| self.inside_map(p));
         self.navigator.step(&NavigatorInput {
             time_s: t,
             pose,
