@@ -273,7 +273,11 @@ async fn fleet_hf_robot_refuses_orders_and_turns_for_init_position() {
     let mut text = std::fs::read_to_string(root.join("config/sim.toml")).unwrap();
     for (old, new) in [
         (
-            "127.0.0.1:2948",
+            "127.0.0.1:2958",
+            format!("127.0.0.1:{}", common::free_port()),
+        ),
+        (
+            "127.0.0.1:8765",
             format!("127.0.0.1:{}", common::free_port()),
         ),
         ("stdout = true", "stdout = false".into()),
