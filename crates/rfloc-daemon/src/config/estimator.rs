@@ -270,20 +270,31 @@ fn check_emitter(e: &EmitterSettings, c: &mut Checks<'_, '_>) {
     c.positive("path_loss_exponent", e.path_loss_exponent, 10.0, "");
     c.positive("grid_cell_m", e.grid_cell_m, 10.0, " m");
     c.positive("map_side_m", e.map_side_m, 10_000.0, " m");
+    c.positive("map_max_side_m", e.map_max_side_m, 10_000.0, " m");
     c.positive("control_period_s", e.control_period_s, 60.0, " s");
     c.positive("reading_window_s", e.reading_window_s, 3600.0, " s");
     c.positive("obstacle_distance_m", e.obstacle_distance_m, 100.0, " m");
     c.positive("arrival_distance_m", e.arrival_distance_m, 100.0, " m");
     c.positive("drive_speed_mps", e.drive_speed_mps, 2.0, " m/s");
+    c.positive("arrival_max_sigma_m", e.arrival_max_sigma_m, 1000.0, " m");
+    if let Some(v) = e.receiver_sensitivity_dbm {
+        c.range("receiver_sensitivity_dbm", v, -150.0, 30.0, " dBm");
+    }
     c.range("a1_dbm_at_1m", e.a1_dbm_at_1m, -150.0, 30.0, " dBm");
     for (i, v) in e.start.iter().enumerate() {
         c.range(&format!("start[{i}]"), *v, -1e6, 1e6, "");
     }
     c.count("particles", e.particles as u64, 1, 1_000_000);
-    if e.map_side_m / e.grid_cell_m > 20_000.0 {
+    if e.map_side_m / e.grid_cell_m > 8_000.0 {
         c.error(
             "map_side_m",
-            "more than 20000 cells a side: use a larger grid_cell_m",
+            "more than 8000 cells a side: use a larger grid_cell_m",
+        );
+    }
+    if e.map_max_side_m / e.grid_cell_m > 8_000.0 {
+        c.error(
+            "map_max_side_m",
+            "more than 8000 cells a side (64e6 cells): use a larger grid_cell_m",
         );
     }
 }
@@ -309,9 +320,15 @@ pub struct EmitterSettings {
     /// Occupancy grid cell side, metres (seed: 0.2).
     #[serde(default = "default_cell")]
     pub grid_cell_m: f64,
-    /// Side of the square map centred on the start, metres.
+    /// Initial side of the square map centred on the start, metres. The map is not limited to
+    /// it: it grows (in chunks of 32 cells) to hold every scan and the emitter estimate, up to
+    /// `map_max_side_m`. (Before maps grew, this was the map's fixed size.)
     #[serde(default = "default_map_side")]
     pub map_side_m: f64,
+    /// Largest map the growth may reach, as the side of a square of the same cell count,
+    /// metres (default 400 m: 4 million cells of 20 cm; never less than `map_side_m`).
+    #[serde(default = "default_map_max_side")]
+    pub map_max_side_m: f64,
     /// Seconds between control steps (filter update and command).
     #[serde(default = "default_control_period")]
     pub control_period_s: f64,
@@ -327,6 +344,15 @@ pub struct EmitterSettings {
     /// Forward speed, m/s.
     #[serde(default = "default_drive_speed")]
     pub drive_speed_mps: f64,
+    /// Arrival is declared only while the filtered estimate's spread (square root of its
+    /// covariance's largest eigenvalue) is at most this, metres; nearer a vaguer estimate the
+    /// robot turns on the spot and keeps measuring.
+    #[serde(default = "default_arrival_sigma")]
+    pub arrival_max_sigma_m: f64,
+    /// A receiver whose poll went unanswered reads as this level (its sensitivity, dBm) when
+    /// at least two of the four heard the emitter; unset: a step needs all four readings.
+    #[serde(default)]
+    pub receiver_sensitivity_dbm: Option<f64>,
     /// Seed of the particle filter's generator.
     #[serde(default)]
     pub seed: u64,
@@ -345,6 +371,12 @@ fn default_cell() -> f64 {
 }
 fn default_map_side() -> f64 {
     12.0
+}
+fn default_arrival_sigma() -> f64 {
+    1.0
+}
+fn default_map_max_side() -> f64 {
+    400.0
 }
 fn default_control_period() -> f64 {
     0.2
