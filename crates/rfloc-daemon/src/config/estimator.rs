@@ -177,6 +177,18 @@ fn check_ekfslam(e: &EkfSlamSettings, c: &mut Checks<'_, '_>) {
         1000.0,
         " m",
     );
+    c.positive(
+        "beacon_init_max_relative_std",
+        e.beacon_init_max_relative_std,
+        10.0,
+        "",
+    );
+    c.count(
+        "beacon_init_relax_after_views",
+        e.beacon_init_relax_after_views as u64,
+        0,
+        10_000,
+    );
     c.positive("waypoint_switch_m", e.waypoint_switch_m, 100.0, " m");
     c.positive("max_speed_mps", e.max_speed_mps, 2.0, " m/s");
     c.positive("path_loss_exponent", e.path_loss_exponent, 10.0, "");
@@ -486,6 +498,14 @@ pub struct EkfSlamSettings {
     /// bearing, and the delayed initialisation triangulates from both (false: bearings only).
     #[serde(default)]
     pub beacon_init_with_range: bool,
+    /// Once a beacon not yet mapped has this many views, it is also mapped when its
+    /// triangulated position's largest σ is at most `beacon_init_max_relative_std` times its
+    /// distance (far beacons seen from a short stretch of route; 0: never).
+    #[serde(default)]
+    pub beacon_init_relax_after_views: usize,
+    /// The relative σ bound of `beacon_init_relax_after_views` (dimensionless).
+    #[serde(default = "default_relative_std")]
+    pub beacon_init_max_relative_std: f64,
     /// Keep each view's robot pose in the filter state until the beacon is mapped, so it enters
     /// the map with its cross-covariances to those poses (false: the views' poses are taken as
     /// exact and the beacon is attached to the current pose).
@@ -520,6 +540,16 @@ pub struct WheelSlipSettings {
     pub track_m: f64,
     /// Interval of one draw, seconds.
     pub interval_s: f64,
+    /// σ of an additive error of the driven speed, m/s, on every increment in which the
+    /// wheels turned (seed 003 Table 3.1's σ_v; default 0).
+    #[serde(default)]
+    pub sigma_v_mps: f64,
+    /// σ of an additive error of the turn rate, rad/s, likewise (Table 3.1's σ_ω; default 0).
+    #[serde(default)]
+    pub sigma_omega_rps: f64,
+}
+fn default_relative_std() -> f64 {
+    0.25
 }
 fn default_odometry_rot_per_m() -> f64 {
     0.01
@@ -539,6 +569,8 @@ impl Default for EkfSlamSettings {
             rssi_sigma_db: default_rssi_sigma(),
             bearing_floor_deg: default_bearing_floor(),
             beacon_init_max_std_m: default_beacon_init_std(),
+            beacon_init_relax_after_views: 0,
+            beacon_init_max_relative_std: default_relative_std(),
             beacon_init_with_range: false,
             beacon_init_pose_copies: false,
             antenna_pattern: None,

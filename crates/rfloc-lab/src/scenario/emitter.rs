@@ -134,6 +134,21 @@ pub async fn run_trial(
         "robot_declared_arrival",
         f64::from(u8::from(main.robot_arrived)),
     );
+    let end = main.truth.last().map_or(Pose2::default(), |(_, p)| *p);
+    let goal = scenario.goal(trial).unwrap_or(Point::new(end.x, end.y));
+    let missed_by = Point::new(end.x, end.y).distance(&goal);
+    if main.reached.is_none() {
+        if main.robot_arrived {
+            rec.fail(format!(
+                "the robot declared arrival but ended {missed_by:.2} m from the goal"
+            ));
+        } else {
+            rec.fail(format!(
+                "goal not reached in {:.1} s (ended {missed_by:.2} m from it)",
+                main.end_time
+            ));
+        }
+    }
     rec.metric("astar_plans", main.plans as f64);
     rec.metric("bumper_steps", main.bumper_steps as f64);
     rec.metric("filter_restarts", main.filter_restarts as f64);

@@ -351,7 +351,7 @@ pub async fn run_trial(
             }
             rec.set_success(true);
         }
-        None => rec.set_success(false),
+        None => rec.fail("no initial pose from the turn"),
     }
     Ok(rec)
 }
