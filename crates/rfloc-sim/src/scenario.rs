@@ -275,6 +275,42 @@ impl Scenario {
                 return Err(invalid(p, text, "mismatch.scale", "must be from 0.2 to 5"));
             }
         }
+        if sp.pipeline == Pipeline::HfInit {
+            let hf = self.hf_model();
+            let checks = [
+                (
+                    "spread_levels",
+                    hf.spread_levels >= 0.0 && hf.spread_levels <= 7.0,
+                ),
+                ("antenna_offset", (0.0..=0.5).contains(&hf.antenna_offset)),
+                (
+                    "miss_probability",
+                    (0.0..1.0).contains(&hf.miss_probability),
+                ),
+                (
+                    "placement_sigma_m",
+                    (0.0..=0.05).contains(&hf.placement_sigma_m),
+                ),
+            ];
+            if let Some((key, _)) = checks.iter().find(|(_, ok)| !ok) {
+                return Err(invalid(
+                    p,
+                    text,
+                    &format!("sensors.hf.{key}"),
+                    "out of range (spread 0–7 levels, offset 0–0.5 m, miss 0–1, placement 0–0.05 m)",
+                ));
+            }
+            if let Some(n) = sp.params.readings_per_turn {
+                if !(3..=360).contains(&n) {
+                    return Err(invalid(
+                        p,
+                        text,
+                        "params.readings_per_turn",
+                        "must be from 3 to 360",
+                    ));
+                }
+            }
+        }
         let d = &sp.robot.drive;
         if sp.pipeline == Pipeline::EkfSlam {
             for (key, v) in [

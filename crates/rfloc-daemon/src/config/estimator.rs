@@ -124,6 +124,7 @@ pub(crate) struct EstimatorEnv<'a> {
 fn check_hfgrid(h: &HfGridSettings, c: &mut Checks<'_, '_>, env: &EstimatorEnv<'_>) {
     c.range("pitch_m", h.pitch_m, 0.01, 10.0, " m");
     c.range("antenna_offset_m", h.antenna_offset_m, -1.0, 1.0, " m");
+    c.range("rssi_distance_scale", h.rssi_distance_scale, 0.2, 5.0, "");
     for (i, t) in h.tags.iter().enumerate() {
         let mut tc = c.nested(&format!("tag[{i}]"));
         if t.uid.trim().is_empty()
@@ -426,6 +427,10 @@ pub struct HfGridSettings {
     /// simulator's HF reader emulates). Only for simulations and for that test floor.
     #[serde(default)]
     pub tag_field: Option<String>,
+    /// Scale of the reader's RSSI-to-distance calibration: every band edge of seed 002's
+    /// table is multiplied by this (1: the table as measured).
+    #[serde(default = "default_one")]
+    pub rssi_distance_scale: f64,
 }
 impl Default for HfGridSettings {
     fn default() -> Self {
@@ -435,8 +440,13 @@ impl Default for HfGridSettings {
             tags: Vec::new(),
             tag_map: None,
             tag_field: None,
+            rssi_distance_scale: 1.0,
         }
     }
+}
+
+fn default_one() -> f64 {
+    1.0
 }
 
 fn default_pitch() -> f64 {

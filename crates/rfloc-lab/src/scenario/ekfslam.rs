@@ -258,6 +258,14 @@ impl Mission {
         base: &Arc<LockstepBase>,
     ) -> anyhow::Result<Mission> {
         let model = scenario.xbee_model();
+        // The path loss the robot is calibrated with: the simulator's, or with `[mismatch]
+        // scale` one whose distances are `scale` times the true ones (P_ref raised by
+        // 10·η·log10(scale) dB).
+        let p_ref_dbm = model.p_ref_dbm
+            + scenario
+                .spec
+                .mismatch
+                .map_or(0.0, |m| 10.0 * model.eta * m.scale.log10());
         let steps = scenario.spec.params.sweep_steps.unwrap_or(40).max(4);
         // One reading's spread about its local mean: fast fading and, for whole-dBm readings,
         // the rounding (uniform over 1 dB: variance 1/12).
@@ -279,7 +287,7 @@ impl Mission {
             max_probe_failures: 3,
             estimator: EstimatorConfig {
                 path_loss: PathLossModel {
-                    p_ref_dbm: model.p_ref_dbm,
+                    p_ref_dbm,
                     d_ref_m: 1.0,
                     eta: model.eta,
                     shadowing_sigma_db: model.shadow_sigma_db,
@@ -305,7 +313,7 @@ impl Mission {
         // scenario's path loss, the RSSI spread of its model, its waypoints and switching
         // distance, and the odometry error as the wheel slip the trial applies.
         let settings = EkfSlamSettings {
-            p_ref_dbm: model.p_ref_dbm,
+            p_ref_dbm,
             path_loss_exponent: model.eta,
             measurement: "rssi".into(),
             sweep_step_deg: 360.0 / steps as f64,

@@ -106,7 +106,11 @@ fn homing_config(
         .world
         .emitter
         .context("the scenario's world has no emitter")?;
-    let rss = calibrate(&scenario.emitter_model(), emitter.power_dbm)?;
+    let mut rss = calibrate(&scenario.emitter_model(), emitter.power_dbm)?;
+    // `[mismatch] scale`: a calibration whose ranges are `scale` times the true ones.
+    if let Some(m) = scenario.spec.mismatch {
+        rss.a1_dbm_at_1m += 10.0 * rss.a2_path_loss_exponent * m.scale.log10();
+    }
     let params = &scenario.spec.params;
     let seed_filter = ParticleFilterConfig::default();
     let filter = ParticleFilterConfig {
