@@ -79,6 +79,7 @@ const EKF_SLAM: &[&str] = &[
     "robot.drive.body_radius",
     "sensors.xbee.*",
     "params.sweep_steps",
+    "params.sweep_every_s",
     "params.waypoint_switch_m",
     "waypoints",
     "mismatch.*",

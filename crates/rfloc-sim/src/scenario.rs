@@ -19,6 +19,9 @@ use crate::uhf::UhfModel;
 use crate::world::{World, WorldSpec};
 use crate::xbee::{RangeBearingNoise, XbeeModel};
 
+/// Step of the lock-step trials: the emulated Pioneer's SIP period, seconds.
+pub const SIP_PERIOD_S: f64 = 0.1;
+
 /// Which rfloc pipeline a scenario exercises.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -166,6 +169,10 @@ pub struct PipelineParams {
     /// Seed 003: reflector sweep steps per revolution (40 × 9°).
     #[serde(default)]
     pub sweep_steps: Option<usize>,
+    /// Seed 003: driving time between two reflector sweeps, seconds (the robot stops to
+    /// sweep; 3 s when absent).
+    #[serde(default)]
+    pub sweep_every_s: Option<f64>,
     /// Seed 003: waypoint switching distance ρ_min, metres.
     #[serde(default)]
     pub waypoint_switch_m: Option<f64>,
@@ -311,6 +318,16 @@ impl Scenario {
                 }
             }
         }
+        if let Some(v) = sp.params.sweep_every_s {
+            if !(v.is_finite() && (0.5..=600.0).contains(&v)) {
+                return Err(invalid(
+                    p,
+                    text,
+                    "params.sweep_every_s",
+                    "must be from 0.5 to 600 s",
+                ));
+            }
+        }
         let d = &sp.robot.drive;
         if sp.pipeline == Pipeline::EkfSlam {
             for (key, v) in [
@@ -340,6 +357,19 @@ impl Scenario {
         }
         if sp.trials == 0 {
             return Err(invalid(p, text, "trials", "must be at least 1"));
+        }
+        // The lock-step trials step at the emulated Pioneer's SIP period; only the snapshot
+        // trial takes its action duration from `dt_s`.
+        if sp.pipeline != Pipeline::Snapshot && (sp.dt_s - SIP_PERIOD_S).abs() > 1e-9 {
+            return Err(invalid(
+                p,
+                text,
+                "dt_s",
+                format!(
+                    "the {} trial steps at the emulated Pioneer's SIP period: dt_s must be {SIP_PERIOD_S}",
+                    crate::keys::pipeline_name(sp.pipeline)
+                ),
+            ));
         }
         let st = sp.robot.start;
         let r = sp.robot.drive.body_radius;

@@ -100,7 +100,8 @@ use probe::NdRssiProbe;
 use rig::{Rig, RigSettings};
 use slip::OdometrySlip;
 
-/// Driving time between two sweeps, simulated seconds.
+/// Driving time between two sweeps, simulated seconds, when the scenario sets no
+/// `params.sweep_every_s`.
 pub const SWEEP_EVERY_S: f64 = 3.0;
 /// `ND` rounds per antenna stop.
 pub const ND_ROUNDS_PER_STOP: u32 = 1;
@@ -319,7 +320,7 @@ impl Mission {
             sweep_step_deg: 360.0 / steps as f64,
             waypoints: scenario.spec.waypoints.clone(),
             start: [start.x, start.y, start.theta.to_degrees()],
-            sweep_every_s: SWEEP_EVERY_S,
+            sweep_every_s: scenario.spec.params.sweep_every_s.unwrap_or(SWEEP_EVERY_S),
             rssi_sigma_db,
             bearing_floor_deg: BEARING_FLOOR_DEG,
             beacon_init_max_std_m: DELAYED_INIT_MAX_STD_M,
