@@ -15,6 +15,9 @@ const EMBEDDED_SIM: &str = include_str!("../../../config/sim.toml");
 
 /// Exit status for configuration errors (sysexits EX_CONFIG).
 const EX_CONFIG: u8 = 78;
+/// Exit status of `rfloc sim` when the run finished but some trials failed.
+#[cfg(feature = "lab")]
+const EX_TRIALS_FAILED: u8 = 2;
 
 /// Sections this build implements beyond the daemon's own.
 #[cfg(feature = "lab")]
@@ -94,6 +97,9 @@ enum Command {
         /// Run only this many trials.
         #[arg(long)]
         trials: Option<usize>,
+        /// Exit 0 even when trials failed (they are still reported and warned about).
+        #[arg(long)]
+        allow_failures: bool,
     },
     /// Serve one emulated device to any client (ARIA programs, digi-xbee, SCIP tools …).
     #[cfg(feature = "lab")]
@@ -352,12 +358,36 @@ fn main() -> ExitCode {
             scenario: path,
             out,
             trials,
+            allow_failures,
         } => {
             init_logging("warn", "text");
-            run_async(rfloc_lab::scenario::run(
-                &path,
-                rfloc_lab::scenario::SimOptions { out, trials },
-            ))
+            let outcome = std::sync::Mutex::new(None);
+            let code = run_async(async {
+                let o = rfloc_lab::scenario::run(
+                    &path,
+                    rfloc_lab::scenario::SimOptions { out, trials },
+                )
+                .await?;
+                if let Ok(mut slot) = outcome.lock() {
+                    *slot = Some(o);
+                }
+                Ok(())
+            });
+            let outcome = outcome.into_inner().ok().flatten();
+            match outcome {
+                Some(o) if o.failures > 0 => {
+                    eprintln!(
+                        "warning: {} of {} trials failed (see the report)",
+                        o.failures, o.trials
+                    );
+                    if allow_failures {
+                        code
+                    } else {
+                        ExitCode::from(EX_TRIALS_FAILED)
+                    }
+                }
+                _ => code,
+            }
         }
         #[cfg(feature = "lab")]
         Command::Emulate {

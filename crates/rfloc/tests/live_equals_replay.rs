@@ -198,7 +198,7 @@ fn snapshot_live_equals_replay() {
     let run = Command::new(env!("CARGO_BIN_EXE_rfloc"))
         .arg("sim")
         .arg(&scenario)
-        .args(["--trials", "1", "-o"])
+        .args(["--trials", "1", "--allow-failures", "-o"])
         .arg(&explore)
         .output()
         .unwrap();

@@ -78,6 +78,8 @@ pub struct EkfSlamPipeline {
     measurement: Measurement,
     /// Odometry noise as wheel slip (else the filter's configured `OdometryNoise`).
     wheel_slip: Option<WheelSlipNoise>,
+    /// σ_v (m/s) and σ_ω (rad/s) added to increments with wheel motion (wheel-slip model).
+    velocity_noise: (f64, f64),
     bearing_floor_rad2: f64,
     sweep_every_s: f64,
     sweep_timeout_s: f64,
@@ -115,6 +117,8 @@ impl EkfSlamPipeline {
             },
             delayed_init: DelayedInit {
                 max_std_m: s.beacon_init_max_std_m,
+                relax_after_views: s.beacon_init_relax_after_views,
+                max_relative_std: s.beacon_init_max_relative_std,
                 delay_range_bearing: s.beacon_init_with_range,
                 view_poses_in_state: s.beacon_init_pose_copies,
                 ..DelayedInit::default()
@@ -145,6 +149,9 @@ impl EkfSlamPipeline {
                 track_m: w.track_m,
                 interval_s: w.interval_s,
             }),
+            velocity_noise: s
+                .wheel_slip
+                .map_or((0.0, 0.0), |w| (w.sigma_v_mps, w.sigma_omega_rps)),
             bearing_floor_rad2: floor * floor,
             sweep_every_s: s.sweep_every_s,
             sweep_timeout_s: s.sweep_timeout_s,
@@ -199,10 +206,19 @@ impl EkfSlamPipeline {
             return Some(self.ekf.pose_estimate(t));
         }
         let predicted = match &self.wheel_slip {
-            Some(model) => self.ekf.predict_odometry_with_covariance(
-                delta,
-                model.increment_covariance(&delta, dt.max(driven)),
-            ),
+            Some(model) => {
+                let mut cov = model.increment_covariance(&delta, dt.max(driven));
+                let (sv, sw) = self.velocity_noise;
+                let moved = delta.x.hypot(delta.y) > 1e-9 || delta.theta.abs() > 1e-9;
+                if moved && (sv > 0.0 || sw > 0.0) {
+                    let d = delta.x.hypot(delta.y);
+                    let (ev, ew) = ((sv * dt).powi(2), (sw * dt).powi(2));
+                    cov[(0, 0)] += ev;
+                    cov[(1, 1)] += ew * d * d / 4.0;
+                    cov[(2, 2)] += ew;
+                }
+                self.ekf.predict_odometry_with_covariance(delta, cov)
+            }
             None => self.ekf.predict_odometry(delta),
         };
         if let Err(e) = predicted {

@@ -33,6 +33,7 @@ const LOG_EVERY_S: f64 = 5.0;
 #[must_use]
 pub fn homing_config(s: &EmitterSettings, start: &Pose2) -> HomingConfig {
     let cells = (s.map_side_m / s.grid_cell_m).round().max(1.0) as usize;
+    let max_side = (s.map_max_side_m / s.grid_cell_m).round().max(1.0) as usize;
     HomingConfig {
         rss: DifferentialRssConfig {
             a1_dbm_at_1m: s.a1_dbm_at_1m,
@@ -48,6 +49,10 @@ pub fn homing_config(s: &EmitterSettings, start: &Pose2) -> HomingConfig {
             width: cells,
             height: cells,
             origin: Point2::new(start.x - s.map_side_m / 2.0, start.y - s.map_side_m / 2.0),
+            // `map_side_m` is the initial extent: the map grows with the explored area and the
+            // goal, up to `map_max_side_m` squared.
+            growable: true,
+            max_cells: max_side.saturating_mul(max_side).max(cells * cells),
             ..OccupancyGridConfig::default()
         },
         navigator: NavigatorConfig {
@@ -55,9 +60,11 @@ pub fn homing_config(s: &EmitterSettings, start: &Pose2) -> HomingConfig {
             obstacle_distance_m: s.obstacle_distance_m,
             arrival_distance_m: s.arrival_distance_m,
             drive_speed_mps: s.drive_speed_mps,
+            arrival_max_sigma_m: s.arrival_max_sigma_m,
             ..NavigatorConfig::default()
         },
         seed: s.seed,
+        receiver_sensitivity_dbm: s.receiver_sensitivity_dbm,
     }
 }
 
@@ -72,6 +79,8 @@ pub struct EmitterCounters {
     pub incomplete: u64,
     /// Polls the emitter did not answer.
     pub unanswered: u64,
+    /// Filter updates with one or two receivers read as their sensitivity (heard nothing).
+    pub censored: u64,
     /// Scans integrated.
     pub scans: u64,
     /// Times the navigator came to a stop at the emitter.
@@ -90,8 +99,9 @@ pub struct EmitterPipeline {
     pose: Option<Pose2>,
     /// A scan waiting for the next odometry event, whose pose it is integrated at.
     pending_scan: Option<Vec<rfloc_emitter::ScanBeam>>,
-    /// Newest reading per receiver: front, left, back, right; (time, dBm).
-    readings: [Option<(f64, f64)>; 4],
+    /// Newest reading per receiver: front, left, back, right; (time, dBm or `None` when the
+    /// poll went unanswered).
+    readings: [Option<(f64, Option<f64>)>; 4],
     control_period_s: f64,
     reading_window_s: f64,
     next_control: Option<f64>,
@@ -199,18 +209,36 @@ impl EmitterPipeline {
         self.estimate
     }
 
-    /// The four receivers' readings if all are fresh at `t`; they are then used up.
+    /// The four receivers' readings if all are fresh at `t`; they are then used up. With a
+    /// receiver sensitivity configured, a receiver that heard nothing reads as that level as
+    /// long as at least two heard the emitter (the true level was at most the sensitivity);
+    /// otherwise all four must have heard it.
     fn take_fresh(&mut self, t: f64) -> Option<AntennaRss> {
         let window = self.reading_window_s;
-        let fresh = |r: Option<(f64, f64)>| r.filter(|(rt, _)| t - rt <= window).map(|r| r.1);
-        let [front, left, back, right] = self.readings.map(fresh);
+        let floor = self.homing.config().receiver_sensitivity_dbm;
+        let fresh = self
+            .readings
+            .map(|r| r.filter(|(rt, _)| t - rt <= window).map(|r| r.1));
+        if fresh.iter().any(Option::is_none) {
+            return None;
+        }
+        // Every receiver has answered this step: the readings are used up either way.
+        self.readings = [None; 4];
+        let heard = fresh.iter().filter(|r| matches!(r, Some(Some(_)))).count();
+        if heard < 2 {
+            return None;
+        }
+        let level = |r: Option<Option<f64>>| r.flatten().or(floor);
+        let [front, left, back, right] = fresh.map(level);
         let rss = AntennaRss {
             front: front?,
             back: back?,
             left: left?,
             right: right?,
         };
-        self.readings = [None; 4];
+        if heard < 4 {
+            self.counters.censored += 1;
+        }
         Some(rss)
     }
 
@@ -305,6 +333,7 @@ impl Drop for EmitterPipeline {
             updates = c.updates,
             incomplete = c.incomplete,
             unanswered = c.unanswered,
+            censored = c.censored,
             scans = c.scans,
             arrivals = c.arrivals,
             bumps = c.bumps,
@@ -360,13 +389,12 @@ impl Pipeline for EmitterPipeline {
             DeviceEvent::EmitterRss {
                 t, antenna, dbm, ..
             } => {
-                match dbm {
-                    Some(v) if v.is_finite() => {
-                        if let Some(r) = self.readings.get_mut(slot(*antenna)) {
-                            *r = Some((*t, *v));
-                        }
-                    }
-                    _ => self.counters.unanswered += 1,
+                let heard = dbm.filter(|v| v.is_finite());
+                if heard.is_none() {
+                    self.counters.unanswered += 1;
+                }
+                if let Some(r) = self.readings.get_mut(slot(*antenna)) {
+                    *r = Some((*t, heard));
                 }
                 None
             }
@@ -538,6 +566,80 @@ mod tests {
         assert_eq!((c.steps, c.updates, c.incomplete), (2, 0, 2));
         assert_eq!(c.unanswered, 1);
         assert!(p.estimate().is_none());
+    }
+
+    #[test]
+    fn receivers_that_hear_nothing_read_as_the_sensitivity_if_two_heard() {
+        let mut s = settings();
+        s.receiver_sensitivity_dbm = Some(-100.0);
+        let mut p = EmitterPipeline::new(&s).unwrap();
+        let silent = |t, antenna| DeviceEvent::EmitterRss {
+            device: format!("{antenna:?}"),
+            t,
+            antenna,
+            dbm: None,
+        };
+        // Two heard, two silent: one update, counted as censored.
+        for e in [
+            rss(0.0, AntennaSide::Front, -70.0),
+            rss(0.0, AntennaSide::Left, -80.0),
+            silent(0.0, AntennaSide::Back),
+            silent(0.0, AntennaSide::Right),
+        ] {
+            p.handle(&e);
+        }
+        p.handle(&odometry(0.0, 0.0));
+        let c = p.counters();
+        assert_eq!((c.updates, c.censored, c.unanswered), (1, 1, 2));
+        let est = p.estimate().unwrap();
+        assert!(est.x > 0.0 && est.y > 0.0, "front-left: {est:?}");
+        // One heard: no update.
+        for e in [
+            rss(0.2, AntennaSide::Front, -70.0),
+            silent(0.2, AntennaSide::Left),
+            silent(0.2, AntennaSide::Back),
+            silent(0.2, AntennaSide::Right),
+        ] {
+            p.handle(&e);
+        }
+        p.handle(&odometry(0.2, 0.0));
+        assert_eq!(p.counters().updates, 1);
+        // Without a sensitivity every receiver must hear it.
+        let mut strict = EmitterPipeline::new(&settings()).unwrap();
+        for e in [
+            rss(0.0, AntennaSide::Front, -70.0),
+            rss(0.0, AntennaSide::Left, -80.0),
+            rss(0.0, AntennaSide::Back, -85.0),
+            silent(0.0, AntennaSide::Right),
+        ] {
+            strict.handle(&e);
+        }
+        strict.handle(&odometry(0.0, 0.0));
+        assert_eq!(strict.counters().updates, 0);
+    }
+
+    #[test]
+    fn the_map_grows_for_a_far_estimate_and_arrival_needs_it_near() {
+        let mut s = settings();
+        s.map_side_m = 4.0;
+        let mut p = EmitterPipeline::new(&s).unwrap();
+        let before = p.homing().grid().width();
+        // An emitter 20 m ahead, far outside the initial 4 m map.
+        for k in 0..40 {
+            let t = f64::from(k) * 0.1;
+            if k % 2 == 0 {
+                for e in ahead(t, 20.0) {
+                    p.handle(&e);
+                }
+            }
+            p.handle(&odometry(t, 0.0));
+        }
+        let e = p.estimate().unwrap();
+        assert!(e.x > 8.0, "{e:?}");
+        let g = p.homing().grid();
+        assert!(g.width() > before, "the map grew: {} cells wide", g.width());
+        assert!(g.world_to_cell(&e).is_some(), "the estimate is on the map");
+        assert!(!p.arrived(), "no arrival 20 m from the estimate");
     }
 
     #[test]

@@ -71,7 +71,7 @@ impl std::fmt::Debug for HfGridPipeline {
 impl HfGridPipeline {
     #[must_use]
     pub fn new(settings: &HfGridSettings, grid: TagGrid) -> Self {
-        let model = RssiModel::seed002_blind_spot();
+        let model = RssiModel::seed002_blind_spot().scaled(settings.rssi_distance_scale);
         let offset = (-settings.antenna_offset_m, 0.0);
         let init = InitialPoseConfig {
             antenna_offset_m: offset,
