@@ -1,4 +1,4 @@
-//! Errors of world and scenario loading and of the `truth.csv` reader.
+//! Errors of world and scenario loading, of the `truth.csv` reader and of the outputs.
 
 use std::path::PathBuf;
 
@@ -30,6 +30,13 @@ pub enum SimError {
         line: usize,
         key: String,
         message: String,
+    },
+    /// A plot could not be drawn.
+    #[error("{path}: {source}")]
+    Plot {
+        path: PathBuf,
+        #[source]
+        source: crate::plot::PlotError,
     },
     /// A `truth.csv` line could not be parsed.
     #[error("{path}:{line}: {message}")]

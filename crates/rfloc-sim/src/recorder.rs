@@ -1,6 +1,7 @@
-//! Recording one trial (truth and estimate trajectories, extra numbers) and writing a
-//! scenario's outputs: per-trial `truth.csv`, `estimate.csv` (same format) and `plot.svg`,
-//! plus `report.md` with the comparison table and `report.json` with the same metrics.
+//! Recording one trial (truth and estimate trajectories, extra numbers, and for the plot the
+//! stops and readings) and writing a scenario's outputs: per-trial `truth.csv`, `estimate.csv`
+//! (same format) and `plot.svg`, plus `summary.svg`, `report.md` with the comparison table and
+//! `report.json` with the same metrics.
 
 use std::path::Path;
 
@@ -9,9 +10,23 @@ use rfloc_pose::Pose2;
 use crate::error::SimError;
 use crate::geometry::Point;
 use crate::metrics::{time_to_goal, trajectory_errors, Summary, TimedPose, TrialResult};
-use crate::report::{svg, PlotData, Report};
-use crate::scenario::Scenario;
+use crate::plot::{summary_svg, trial_svg, SummaryTrial, TrialPlot};
+use crate::report::Report;
+use crate::scenario::{Pipeline, Scenario};
 use crate::truth;
+
+/// A landmark a sensor read at a time: drawn as a line from where the sensor was to the
+/// landmark, the landmarks read labelled with their count.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Reading {
+    pub t: f64,
+    /// The landmark's name (a tag's UID, a beacon's label).
+    pub label: String,
+    /// Where the sensor (antenna) was, true position.
+    pub sensor: Point,
+    /// Where the landmark is, true position.
+    pub landmark: Point,
+}
 
 /// Collects what happened in one trial.
 #[derive(Debug, Clone, PartialEq)]
@@ -25,6 +40,11 @@ pub struct TrialRecorder {
     pub extra: Vec<(String, f64)>,
     /// Labelled estimated points for the plot (e.g. beacons).
     pub marks: Vec<(String, Point)>,
+    /// Where the robot stood still on purpose (a turn's stops, a sweep): true pose, for the
+    /// plot.
+    pub stops: Vec<TimedPose>,
+    /// What the sensors read (a tag, a beacon), for the plot.
+    pub readings: Vec<Reading>,
     success: Option<bool>,
     /// Why the trial failed (empty unless [`TrialRecorder::fail`] was called).
     failures: Vec<String>,
@@ -44,6 +64,8 @@ impl TrialRecorder {
                 .zip(scenario.spec.goal.map(|g| g.tolerance_m)),
             extra: Vec::new(),
             marks: Vec::new(),
+            stops: Vec::new(),
+            readings: Vec::new(),
             success: None,
             failures: Vec::new(),
         }
@@ -69,6 +91,21 @@ impl TrialRecorder {
     /// Appends an estimated pose.
     pub fn estimate(&mut self, t: f64, pose: Pose2) {
         self.estimate.push(TimedPose::new(t, pose));
+    }
+
+    /// The robot stands still at `pose` (true) on purpose: a stop of a turn, a sweep.
+    pub fn stop(&mut self, t: f64, pose: Pose2) {
+        self.stops.push(TimedPose::new(t, pose));
+    }
+
+    /// A sensor at `sensor` read the landmark `label` at `landmark` (true positions).
+    pub fn reading(&mut self, t: f64, label: impl Into<String>, sensor: Point, landmark: Point) {
+        self.readings.push(Reading {
+            t,
+            label: label.into(),
+            sensor,
+            landmark,
+        });
     }
 
     /// Adds a named number (e.g. `beacon_rmse_1_m`); repeated names are averaged by [`Summary`].
@@ -107,9 +144,9 @@ fn io(path: &Path) -> impl FnOnce(std::io::Error) -> SimError + '_ {
     }
 }
 
-/// Writes `dir/trial-NN/{truth.csv, estimate.csv, plot.svg}`, `dir/report.md` and
-/// `dir/report.json`; returns the report. Published numbers appear only when the scenario is
-/// its seed's own experiment ([`Scenario::published_key`]).
+/// Writes `dir/trial-NN/{truth.csv, estimate.csv, plot.svg}`, `dir/summary.svg`,
+/// `dir/report.md` and `dir/report.json`; returns the report. Published numbers appear only when
+/// the scenario is its seed's own experiment ([`Scenario::published_key`]).
 pub fn write_outputs(
     dir: &Path,
     scenario: &Scenario,
@@ -117,37 +154,78 @@ pub fn write_outputs(
 ) -> Result<Report, SimError> {
     std::fs::create_dir_all(dir).map_err(io(dir))?;
     let mut results = Vec::with_capacity(trials.len());
+    let waypoints: Vec<Point> = scenario
+        .spec
+        .waypoints
+        .iter()
+        .map(|w| Point::new(w[0], w[1]))
+        .collect();
+    let time_label = time_label(scenario);
     for rec in trials {
         let tdir = dir.join(format!("trial-{:02}", rec.trial));
         std::fs::create_dir_all(&tdir).map_err(io(&tdir))?;
         truth::write(&tdir.join("truth.csv"), &rec.truth)?;
         truth::write(&tdir.join("estimate.csv"), &rec.estimate)?;
-        let mut waypoints: Vec<Point> = scenario
-            .spec
-            .waypoints
-            .iter()
-            .map(|w| Point::new(w[0], w[1]))
-            .collect();
-        waypoints.extend(rec.goal.map(|(g, _)| g));
-        let plot = svg(
-            &scenario.world,
-            &PlotData {
-                truth: &rec.truth,
-                estimate: &rec.estimate,
-                marks: rec.marks.clone(),
-                waypoints,
-                title: format!(
-                    "{} trial {} (seed {})",
-                    scenario.spec.name, rec.trial, rec.seed
-                ),
-            },
-            svg_scale(scenario),
+        let title = format!(
+            "{} trial {} (seed {})",
+            scenario.spec.name, rec.trial, rec.seed
         );
         let p = tdir.join("plot.svg");
+        let plot = trial_svg(&TrialPlot {
+            title: &title,
+            world: &scenario.world,
+            truth: &rec.truth,
+            estimate: &rec.estimate,
+            stops: &rec.stops,
+            readings: &rec.readings,
+            marks: &rec.marks,
+            waypoints: &waypoints,
+            goal: rec.goal,
+            time_label,
+        })
+        .map_err(|source| SimError::Plot {
+            path: p.clone(),
+            source,
+        })?;
         std::fs::write(&p, plot).map_err(io(&p))?;
         results.push(rec.finish());
     }
+    let summary: Vec<SummaryTrial<'_>> = trials
+        .iter()
+        .zip(&results)
+        .map(|(rec, r)| SummaryTrial {
+            trial: rec.trial,
+            success: r.success,
+            truth: &rec.truth,
+            estimate: &rec.estimate,
+        })
+        .collect();
+    let p = dir.join("summary.svg");
+    let plot = summary_svg(
+        &format!(
+            "{}: position error per trial ({} trials)",
+            scenario.spec.name,
+            trials.len()
+        ),
+        &summary,
+    )
+    .map_err(|source| SimError::Plot {
+        path: p.clone(),
+        source,
+    })?;
+    std::fs::write(&p, plot).map_err(io(&p))?;
     report_for(scenario, trials, &results, dir)
+}
+
+/// The time axis of a scenario's plots: seconds, or navigation steps for the snapshot trials
+/// (whose `truth.csv` times are steps).
+#[must_use]
+pub fn time_label(scenario: &Scenario) -> &'static str {
+    if scenario.spec.pipeline == Pipeline::Snapshot {
+        "time (navigation steps)"
+    } else {
+        "time (s)"
+    }
 }
 
 /// The report of finished trials, written to `dir/report.md` and `dir/report.json`.
@@ -173,17 +251,6 @@ fn report_for(
     let p = dir.join("report.json");
     std::fs::write(&p, report.json()).map_err(io(&p))?;
     Ok(report)
-}
-
-/// Pixels per metre so that the larger side of the area is about 800 px.
-fn svg_scale(scenario: &Scenario) -> f64 {
-    let w = &scenario.world;
-    let span = (w.area_max.x - w.area_min.x).max(w.area_max.y - w.area_min.y);
-    if span > 0.0 {
-        800.0 / span
-    } else {
-        100.0
-    }
 }
 
 #[cfg(test)]
@@ -246,9 +313,19 @@ emitter = { x = 4.0, y = 0.0 }
         assert_eq!(json["outcomes"][1]["success"], false);
         let back = truth::read(&dir.join("trial-01/truth.csv")).unwrap();
         assert_eq!(back, recs[1].truth);
-        assert!(std::fs::read_to_string(dir.join("trial-00/plot.svg"))
-            .unwrap()
-            .contains("emitter"));
+        let plot = std::fs::read_to_string(dir.join("trial-00/plot.svg")).unwrap();
+        for label in [
+            "emitter",
+            "x (m)",
+            "y (m)",
+            "time (s)",
+            "true path",
+            "goal (± 0.5 m)",
+        ] {
+            assert!(plot.contains(label), "no {label:?} in the plot");
+        }
+        let summary = std::fs::read_to_string(dir.join("summary.svg")).unwrap();
+        assert!(summary.contains("fraction of estimates") && summary.contains("failed"));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -1,7 +1,6 @@
 //! `truth.csv`: the true trajectory of a run, header `t,x,y,theta` (seconds, metres,
-//! radians), one pose per line.
+//! radians), one pose per line. Written and read with the `csv` crate.
 
-use std::fmt::Write as _;
 use std::path::Path;
 
 use rfloc_pose::Pose2;
@@ -12,16 +11,46 @@ use crate::metrics::TimedPose;
 /// The header line.
 pub const HEADER: &str = "t,x,y,theta";
 
-/// Renders poses as `truth.csv` text (full `f64` precision, so reading it back is exact).
+fn csv_error(path: &Path, line: usize, e: &csv::Error) -> SimError {
+    SimError::Csv {
+        path: path.to_path_buf(),
+        line,
+        message: e.to_string(),
+    }
+}
+
+/// 1-based line of the record that starts at byte `byte` of `text` (the reader's own line
+/// count skips blank lines, and its record positions start at the blank lines before a record).
+fn line_of(text: &str, byte: u64) -> usize {
+    let mut end = usize::try_from(byte).unwrap_or(usize::MAX).min(text.len());
+    while matches!(text.as_bytes().get(end), Some(b'\n' | b'\r')) {
+        end += 1;
+    }
+    text.as_bytes()
+        .get(..end)
+        .map_or(0, |b| b.iter().filter(|c| **c == b'\n').count())
+        + 1
+}
+
+/// Renders poses as `truth.csv` text (each number in Rust's shortest exact form, so reading
+/// it back is exact).
 #[must_use]
 pub fn to_csv(poses: &[TimedPose]) -> String {
-    let mut s = String::with_capacity(32 * (poses.len() + 1));
-    s.push_str(HEADER);
-    s.push('\n');
+    let mut w = csv::WriterBuilder::new()
+        .terminator(csv::Terminator::Any(b'\n'))
+        .from_writer(Vec::with_capacity(32 * (poses.len() + 1)));
+    // Writing into memory cannot fail.
+    let _ = w.write_record(HEADER.split(','));
     for p in poses {
-        let _ = writeln!(s, "{},{},{},{}", p.t, p.pose.x, p.pose.y, p.pose.theta);
+        let _ = w.write_record([
+            p.t.to_string(),
+            p.pose.x.to_string(),
+            p.pose.y.to_string(),
+            p.pose.theta.to_string(),
+        ]);
     }
-    s
+    let bytes = w.into_inner().unwrap_or_default();
+    String::from_utf8(bytes).unwrap_or_default()
 }
 
 /// Writes `truth.csv`.
@@ -39,34 +68,55 @@ pub fn parse(text: &str, path: &Path) -> Result<Vec<TimedPose>, SimError> {
         line,
         message,
     };
-    let mut lines = text.lines().enumerate();
-    match lines.next() {
-        Some((_, h)) if h.trim() == HEADER => {}
-        Some((_, h)) => return Err(err(1, format!("expected header `{HEADER}`, found `{h}`"))),
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .from_reader(text.as_bytes());
+    let mut records = reader.records();
+    match records.next() {
+        Some(Ok(h)) if h.iter().eq(HEADER.split(',')) => {}
+        Some(Ok(h)) => {
+            let found: Vec<&str> = h.iter().collect();
+            return Err(err(
+                1,
+                format!("expected header `{HEADER}`, found `{}`", found.join(",")),
+            ));
+        }
+        Some(Err(e)) => return Err(csv_error(path, 1, &e)),
         None => return Err(err(1, "empty file".to_string())),
     }
     let mut out = Vec::new();
-    for (i, l) in lines {
-        if l.trim().is_empty() {
+    for record in records {
+        let record = record.map_err(|e| {
+            let line = e.position().map_or(0, |p| line_of(text, p.byte()));
+            csv_error(path, line, &e)
+        })?;
+        let line = record.position().map_or(0, |p| line_of(text, p.byte()));
+        if record.iter().all(str::is_empty) {
             continue;
         }
-        let fields: Vec<&str> = l.split(',').map(str::trim).collect();
+        let fields: Vec<&str> = record.iter().collect();
         let [t, x, y, th] = fields.as_slice() else {
             return Err(err(
-                i + 1,
-                format!("expected 4 fields, found {}: `{l}`", fields.len()),
+                line,
+                format!(
+                    "expected 4 fields, found {}: `{}`",
+                    fields.len(),
+                    fields.join(",")
+                ),
             ));
         };
         let num = |s: &str, name: &str| -> Result<f64, SimError> {
             s.parse::<f64>()
                 .ok()
                 .filter(|v| v.is_finite())
-                .ok_or_else(|| err(i + 1, format!("`{name}` is not a finite number: `{s}`")))
+                .ok_or_else(|| err(line, format!("`{name}` is not a finite number: `{s}`")))
         };
         let t = num(t, "t")?;
         if let Some(last) = out.last().map(|p: &TimedPose| p.t) {
             if t < last {
-                return Err(err(i + 1, format!("time goes backwards ({t} < {last})")));
+                return Err(err(line, format!("time goes backwards ({t} < {last})")));
             }
         }
         out.push(TimedPose::new(
@@ -130,5 +180,14 @@ mod tests {
         assert!(e.to_string().contains(":3: time goes backwards"));
         let e = parse("t,x,y,theta\n1,0,0\n", Path::new("t.csv")).unwrap_err();
         assert!(e.to_string().contains(":2: expected 4 fields"));
+        // Blank lines are skipped, and line numbers still count them.
+        let e = parse("t,x,y,theta\n\n0,0,0,0\n\n0,0,q,0\n", Path::new("t.csv")).unwrap_err();
+        assert!(e.to_string().starts_with("t.csv:5: `y`"), "{e}");
+        assert_eq!(
+            parse("t,x,y,theta\n\n0,1,2,3\n", Path::new("t.csv"))
+                .unwrap()
+                .len(),
+            1
+        );
     }
 }

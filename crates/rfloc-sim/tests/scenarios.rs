@@ -9,7 +9,7 @@ use rand_chacha::ChaCha8Rng;
 use rfloc_pose::Pose2;
 use rfloc_sim::geometry::Point;
 use rfloc_sim::metrics::{trajectory_errors, TimedPose, TrialResult};
-use rfloc_sim::report::{svg, PlotData};
+use rfloc_sim::plot::{trial_svg, TrialPlot};
 use rfloc_sim::{Pipeline, Report, RobotSim, Scenario, Summary, World};
 
 fn scenarios_dir() -> PathBuf {
@@ -268,22 +268,30 @@ fn same_seed_same_run_and_report() {
     }]);
     let table = Report::new("seed003-case1", Some("seed003-case1"), &summary).table();
     assert!(table.contains("| rmse_m |") && table.contains("0.6900"));
-    let plot = svg(
-        &s.world,
-        &PlotData {
-            truth: &t1,
-            estimate: &o1,
-            waypoints: s
-                .spec
-                .waypoints
-                .iter()
-                .map(|w| Point::new(w[0], w[1]))
-                .collect(),
-            title: "case I".into(),
-            ..PlotData::default()
-        },
-        50.0,
-    );
-    assert_eq!(plot.matches("<polyline").count(), 2);
-    assert_eq!(plot.matches("fill=\"#30a030\"").count(), 4);
+    let waypoints: Vec<Point> = s
+        .spec
+        .waypoints
+        .iter()
+        .map(|w| Point::new(w[0], w[1]))
+        .collect();
+    let plot = trial_svg(&TrialPlot {
+        title: "case I",
+        world: &s.world,
+        truth: &t1,
+        estimate: &o1,
+        stops: &[],
+        readings: &[],
+        marks: &[],
+        waypoints: &waypoints,
+        goal: None,
+        time_label: "time (s)",
+    })
+    .unwrap();
+    // Both paths, the four beacons (labelled with their names) and the axes with units.
+    for b in &s.world.beacons {
+        assert!(plot.contains(&b.ni), "{}", b.ni);
+    }
+    for label in ["x (m)", "y (m)", "true path", "estimated path", "waypoint"] {
+        assert!(plot.contains(label), "{label}");
+    }
 }
