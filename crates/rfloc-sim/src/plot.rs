@@ -121,6 +121,24 @@ fn nice_step(span: f64) -> f64 {
     n * mag
 }
 
+/// Decimals that tick labels over `span` need (ticks are about `span / 10` apart).
+fn decimals(span: f64) -> usize {
+    let step = (span / 10.0).abs().max(1e-9);
+    usize::try_from((-step.log10().floor()).max(0.0) as i64)
+        .unwrap_or(0)
+        .min(6)
+}
+
+/// A tick label of `v` with `d` decimals (no "-0.0").
+fn tick(v: f64, d: usize) -> String {
+    let text = format!("{v:.d$}");
+    if text.starts_with('-') && text.trim_start_matches(['-', '0', '.']).is_empty() {
+        text.trim_start_matches('-').to_string()
+    } else {
+        text
+    }
+}
+
 /// A length in metres as the scale bar writes it.
 fn metres(v: f64) -> String {
     if v >= 1.0 {
@@ -332,8 +350,9 @@ fn draw_map(
         .label_style((FONT, 12))
         .light_line_style(GRID_C)
         .bold_line_style(RGBColor(205, 205, 205))
-        .x_label_formatter(&|v| format!("{v:.2}"))
-        .y_label_formatter(&|v| format!("{v:.2}"))
+        .max_light_lines(2)
+        .x_label_formatter(&|v| tick(*v, decimals(x1 - x0)))
+        .y_label_formatter(&|v| tick(*v, decimals(y1 - y0)))
         .draw()
         .map_err(err)?;
     let span = (x1 - x0).max(y1 - y0);
@@ -456,6 +475,12 @@ fn draw_map(
         legend.push((Sample::Dashed(EST_C), "estimated path".into()));
         // Estimated heading at (some of) the estimates, with the true pose of the same time.
         let picks: Vec<usize> = spaced(p.estimate.len(), MAX_ARROWS).collect();
+        // A trial with a single answer (an initial pose) shows it larger.
+        let len = if p.estimate.len() <= 3 {
+            2.0 * len
+        } else {
+            len
+        };
         let mut true_arrows = Vec::new();
         let mut est_arrows = Vec::new();
         for i in picks {
@@ -495,19 +520,29 @@ fn draw_map(
             )
             .map_err(err)?;
         chart
-            .draw_series(p.stops.iter().enumerate().map(|(k, s)| {
-                let d = 1.9 * len;
-                Text::new(
-                    format!("{}", k + 1),
-                    (
-                        s.pose.x + d * s.pose.theta.cos(),
-                        s.pose.y + d * s.pose.theta.sin(),
-                    ),
-                    TextStyle::from((FONT, 11))
-                        .color(&STOP_C)
-                        .pos(Pos::new(HPos::Center, VPos::Center)),
-                )
-            }))
+            .draw_series(
+                p.stops
+                    .iter()
+                    .enumerate()
+                    .filter(|(k, _)| {
+                        // Every stop numbered up to 12, then about 12 of them and the last.
+                        let every = p.stops.len().div_ceil(12).max(1);
+                        k % every == 0 || k + 1 == p.stops.len()
+                    })
+                    .map(|(k, s)| {
+                        let d = 1.9 * len;
+                        Text::new(
+                            format!("{}", k + 1),
+                            (
+                                s.pose.x + d * s.pose.theta.cos(),
+                                s.pose.y + d * s.pose.theta.sin(),
+                            ),
+                            TextStyle::from((FONT, 11))
+                                .color(&STOP_C)
+                                .pos(Pos::new(HPos::Center, VPos::Center)),
+                        )
+                    }),
+            )
             .map_err(err)?;
         legend.push((
             Sample::Arrow(STOP_C),
@@ -623,11 +658,14 @@ fn draw_errors(
         .label_style((FONT, 12))
         .light_line_style(GRID_C)
         .bold_line_style(RGBColor(205, 205, 205))
-        .y_label_formatter(&|v| format!("{v:.3}"))
+        .max_light_lines(2)
+        .x_label_formatter(&|v| tick(*v, decimals(t1 - t0)))
+        .y_label_formatter(&|v| tick(*v, decimals(top_d)))
         .draw()
         .map_err(err)?;
     chart
         .configure_secondary_axes()
+        .y_label_formatter(&|v| tick(*v, decimals(top_h)))
         .y_desc("heading error (°)")
         .axis_desc_style((FONT, 14))
         .label_style((FONT, 12))
@@ -752,7 +790,8 @@ pub fn summary_svg(title: &str, trials: &[SummaryTrial<'_>]) -> Result<String, P
                     String::new()
                 }
             })
-            .y_label_formatter(&|v| format!("{v:.3}"))
+            .max_light_lines(2)
+            .y_label_formatter(&|v| tick(*v, decimals(top)))
             .draw()
             .map_err(err)?;
         chart
@@ -811,7 +850,8 @@ pub fn summary_svg(title: &str, trials: &[SummaryTrial<'_>]) -> Result<String, P
             .axis_desc_style((FONT, 14))
             .label_style((FONT, 12))
             .light_line_style(GRID_C)
-            .x_label_formatter(&|v| format!("{v:.3}"))
+            .max_light_lines(2)
+            .x_label_formatter(&|v| tick(*v, decimals(right_top)))
             .draw()
             .map_err(err)?;
         let k = all.len() as f64;
@@ -870,6 +910,14 @@ mod tests {
         assert_eq!(nice_step(4.0), 1.0);
         assert_eq!(nice_step(0.9), 0.2);
         assert_eq!(metres(0.2), "20 cm");
+        assert_eq!(
+            (decimals(0.97), decimals(0.0011), decimals(15.0)),
+            (2, 4, 0)
+        );
+        assert_eq!(
+            (tick(-0.001, 2), tick(-0.5, 1), tick(2.0, 0)),
+            ("0.00".into(), "-0.5".into(), "2".into())
+        );
     }
 
     #[test]
@@ -944,7 +992,7 @@ mod tests {
             .map(|(content, _)| content.trim())
             .collect();
         assert!(
-            texts.contains(&"1.00") && texts.contains(&"2.00"),
+            texts.contains(&"1.0") && texts.contains(&"2.0"),
             "no ticks: {texts:?}"
         );
     }

@@ -45,6 +45,9 @@ pub struct TrialRecorder {
     pub stops: Vec<TimedPose>,
     /// What the sensors read (a tag, a beacon), for the plot.
     pub readings: Vec<Reading>,
+    /// `(trial time, capture time)` pairs, when the trial's clock is not the captures' (see
+    /// [`TrialRecorder::to_capture_clock`]).
+    pub capture_clock: Vec<(f64, f64)>,
     success: Option<bool>,
     /// Why the trial failed (empty unless [`TrialRecorder::fail`] was called).
     failures: Vec<String>,
@@ -66,6 +69,7 @@ impl TrialRecorder {
             marks: Vec::new(),
             stops: Vec::new(),
             readings: Vec::new(),
+            capture_clock: Vec::new(),
             success: None,
             failures: Vec::new(),
         }
@@ -106,6 +110,28 @@ impl TrialRecorder {
             sensor,
             landmark,
         });
+    }
+
+    /// At trial time `t` the captures' clock read `capture_t` (simulated seconds of the
+    /// emulators): for a trial whose times are not the captures' (a mission clock that starts
+    /// later, navigation steps).
+    pub fn capture_time(&mut self, t: f64, capture_t: f64) {
+        self.capture_clock.push((t, capture_t));
+    }
+
+    /// A trial time on the captures' clock: linear between the pairs given to
+    /// [`TrialRecorder::capture_time`] (in time order), the nearest pair's offset outside them,
+    /// `t` itself without any.
+    #[must_use]
+    pub fn to_capture_clock(&self, t: f64) -> f64 {
+        let c = &self.capture_clock;
+        let i = c.partition_point(|(a, _)| *a <= t);
+        match (i.checked_sub(1).and_then(|k| c.get(k)), c.get(i)) {
+            (Some(&(a, ca)), Some(&(b, cb))) if b > a => ca + (t - a) / (b - a) * (cb - ca),
+            (Some(&(a, ca)), _) => ca + (t - a),
+            (None, Some(&(b, cb))) => cb + (t - b),
+            (None, None) => t,
+        }
     }
 
     /// Adds a named number (e.g. `beacon_rmse_1_m`); repeated names are averaged by [`Summary`].
@@ -274,6 +300,19 @@ tolerance_m = 0.5
 area = { min = [-1.0, -1.0], max = [5.0, 1.0] }
 emitter = { x = 4.0, y = 0.0 }
 "#;
+
+    #[test]
+    fn trial_times_map_to_the_capture_clock() {
+        let s = Scenario::from_toml_str(S, Path::new("s.toml")).unwrap();
+        let mut r = TrialRecorder::new(&s, 0);
+        assert_eq!(r.to_capture_clock(3.0), 3.0);
+        r.capture_time(0.0, 1.0);
+        assert_eq!(r.to_capture_clock(5.0), 6.0);
+        r.capture_time(2.0, 11.0);
+        assert_eq!(r.to_capture_clock(1.0), 6.0);
+        assert_eq!(r.to_capture_clock(3.0), 12.0);
+        assert_eq!(r.to_capture_clock(-1.0), 0.0);
+    }
 
     #[test]
     fn records_score_and_write_outputs() {

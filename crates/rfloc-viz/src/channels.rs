@@ -24,10 +24,12 @@ pub(crate) enum Ch {
     Status,
     Link,
     Observation,
+    Truth,
+    TruthPath,
 }
 
 impl Ch {
-    const ALL: [Ch; 13] = [
+    const ALL: [Ch; 15] = [
         Ch::Pose,
         Ch::PoseCovariance,
         Ch::PoseEllipse,
@@ -41,6 +43,8 @@ impl Ch {
         Ch::Status,
         Ch::Link,
         Ch::Observation,
+        Ch::Truth,
+        Ch::TruthPath,
     ];
 
     pub(crate) fn index(self) -> usize {
@@ -94,6 +98,8 @@ pub(crate) fn table() -> Vec<ChannelInfo> {
         info::<Log>(topics::STATUS),
         info::<LinkBytes>(topics::LINK),
         info::<Observation>(topics::OBSERVATION),
+        info::<PoseInFrame>(topics::TRUTH),
+        info::<PosesInFrame>(topics::TRUTH_PATH),
     ]
 }
 

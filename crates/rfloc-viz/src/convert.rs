@@ -179,6 +179,15 @@ pub(crate) fn pose_in_frame(stamp: Stamp, estimate: &PoseEstimate) -> PoseInFram
     }
 }
 
+/// A pose in `map` without a covariance (a simulation's truth, an estimate recorded without one).
+pub(crate) fn plain_pose(stamp: Stamp, pose: &Pose2) -> PoseInFrame {
+    PoseInFrame {
+        timestamp: Some(stamp.timestamp()),
+        frame_id: MAP.to_string(),
+        pose: Some(pose3(pose)),
+    }
+}
+
 pub(crate) fn odometry(stamp: Stamp, estimate: &PoseEstimate) -> Odometry {
     let mut velocity_covariance = vec![0.0; 36];
     for d in 0..6 {

@@ -139,6 +139,11 @@ pub enum VizEvent {
         kind: String,
         json: String,
     },
+    /// A simulated robot's true pose in `map` ([`crate::topics::TRUTH`], `foxglove.PoseInFrame`).
+    Truth { stamp: Stamp, pose: Pose2 },
+    /// A simulated robot's true path in `map` ([`crate::topics::TRUTH_PATH`],
+    /// `foxglove.PosesInFrame`).
+    TruthPath { stamp: Stamp, poses: Vec<Pose2> },
 }
 
 impl VizEvent {
@@ -155,7 +160,9 @@ impl VizEvent {
             | VizEvent::Scan { stamp, .. }
             | VizEvent::Status { stamp, .. }
             | VizEvent::LinkBytes { stamp, .. }
-            | VizEvent::Observation { stamp, .. } => *stamp,
+            | VizEvent::Observation { stamp, .. }
+            | VizEvent::Truth { stamp, .. }
+            | VizEvent::TruthPath { stamp, .. } => *stamp,
         }
     }
 }

@@ -14,6 +14,12 @@
 //! | [`SCAN`] | `foxglove.LaserScan` | `base_link` |
 //! | [`STATUS`] | `foxglove.Log` | — |
 //! | [`LINK`] | `linkbytes.LinkBytes` | — |
+//! | [`OBSERVATION`] | `observation.Observation` | — |
+//! | [`TRUTH`] | `foxglove.PoseInFrame` | `map` |
+//! | [`TRUTH_PATH`] | `foxglove.PosesInFrame` | `map` |
+//!
+//! [`TRUTH`] and [`TRUTH_PATH`] carry a simulation's ground truth (`rfloc sim`'s `run.mcap`);
+//! a robot never publishes on them.
 
 /// The world frame.
 pub const MAP: &str = "map";
@@ -37,9 +43,13 @@ pub const LINK: &str = "/rfloc/link";
 /// A decoded device observation (`observation.Observation`: time, device, kind and the observation as
 /// JSON).
 pub const OBSERVATION: &str = "/rfloc/observation";
+/// The true pose of a simulated robot.
+pub const TRUTH: &str = "/rfloc/truth";
+/// The true path of a simulated robot.
+pub const TRUTH_PATH: &str = "/rfloc/truth/path";
 
 /// Every topic, in the order of the table above.
-pub const ALL: [&str; 13] = [
+pub const ALL: [&str; 15] = [
     POSE,
     POSE_COVARIANCE,
     POSE_ELLIPSE,
@@ -53,4 +63,6 @@ pub const ALL: [&str; 13] = [
     STATUS,
     LINK,
     OBSERVATION,
+    TRUTH,
+    TRUTH_PATH,
 ];

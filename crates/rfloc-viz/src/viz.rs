@@ -138,6 +138,8 @@ impl Viz {
                 kind,
                 json,
             } => self.observation(*stamp, device, kind, json),
+            VizEvent::Truth { stamp, pose } => self.truth(*stamp, pose),
+            VizEvent::TruthPath { stamp, poses } => self.truth_path(*stamp, poses),
         }
     }
 
@@ -164,6 +166,25 @@ impl Viz {
         self.hub.deliver(Ch::PoseEllipse, stamp, || {
             convert::pose_ellipse(stamp, estimate)
         });
+    }
+
+    /// A pose estimate that comes without a covariance (a simulated trial's `estimate.csv`): on
+    /// [`crate::topics::POSE`] only, not on the channels that show a covariance.
+    pub fn pose_without_covariance(&self, stamp: Stamp, pose: &Pose2) {
+        self.hub
+            .deliver(Ch::Pose, stamp, || convert::plain_pose(stamp, pose));
+    }
+
+    /// A simulated robot's true pose in `map` on [`crate::topics::TRUTH`].
+    pub fn truth(&self, stamp: Stamp, pose: &Pose2) {
+        self.hub
+            .deliver(Ch::Truth, stamp, || convert::plain_pose(stamp, pose));
+    }
+
+    /// A simulated robot's true path in `map` on [`crate::topics::TRUTH_PATH`].
+    pub fn truth_path(&self, stamp: Stamp, poses: &[Pose2]) {
+        self.hub
+            .deliver(Ch::TruthPath, stamp, || convert::path(stamp, poses));
     }
 
     /// A path of poses in `map` on [`crate::topics::PATH`].

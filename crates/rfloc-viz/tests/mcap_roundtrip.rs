@@ -23,7 +23,7 @@ fn every_channel_round_trips() {
     let stats = summary.stats.as_ref().expect("statistics");
     let expected = common::expected_counts();
     assert_eq!(stats.message_count, expected.values().sum::<u64>());
-    assert_eq!(stats.channel_count, 13);
+    assert_eq!(stats.channel_count, 15);
     // SceneUpdate serves four channels: ten distinct schemas.
     assert_eq!(stats.schema_count, 10);
     assert_eq!(stats.message_start_time, common::T0);
@@ -36,12 +36,12 @@ fn every_channel_round_trips() {
         assert_eq!(schema.encoding, "protobuf", "{}", channel.topic);
         assert!(!schema.data.is_empty());
         let expected_schema = match channel.topic.as_str() {
-            topics::POSE => "foxglove.PoseInFrame",
+            topics::POSE | topics::TRUTH => "foxglove.PoseInFrame",
             topics::POSE_COVARIANCE => "foxglove.Odometry",
             topics::POSE_ELLIPSE | topics::TARGET | topics::BEACONS | topics::TAGS => {
                 "foxglove.SceneUpdate"
             }
-            topics::PATH => "foxglove.PosesInFrame",
+            topics::PATH | topics::TRUTH_PATH => "foxglove.PosesInFrame",
             topics::TF => "foxglove.FrameTransforms",
             topics::PARTICLES => "foxglove.PointCloud",
             topics::SCAN => "foxglove.LaserScan",

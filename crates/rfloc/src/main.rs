@@ -365,7 +365,11 @@ fn main() -> ExitCode {
             let code = run_async(async {
                 let o = rfloc_lab::scenario::run(
                     &path,
-                    rfloc_lab::scenario::SimOptions { out, trials },
+                    rfloc_lab::scenario::SimOptions {
+                        out,
+                        trials,
+                        progress: None,
+                    },
                 )
                 .await?;
                 if let Ok(mut slot) = outcome.lock() {

@@ -449,6 +449,8 @@ impl Mission {
         }
         let mut prev_odo = first.pose;
         self.pipeline.handle(&self.odometry_event(first.v, first.w));
+        // The mission clock starts here; the captures count the emulator's seconds.
+        self.rec.capture_time(self.t, state.sim_time);
         self.record(state.truth);
         loop {
             // One SIP period under the command sent at the end of the previous one.
@@ -475,6 +477,7 @@ impl Mission {
                         // The sweep takes its ticks of the standing robot (the probe spreads
                         // them over its rounds); the mission clock counts them as the sweep's
                         // `sweep_seconds`.
+                        self.rec.stop(self.t, state.truth);
                         let result = self.sweep(heading_rad, state.truth).await?;
                         self.t += self.sweep_seconds;
                         self.pipeline.handle(&DeviceEvent::Sweep {
@@ -515,7 +518,18 @@ impl Mission {
         let swept = rfloc_daemon::devices::swept_beacons(&result.report);
         for b in &swept {
             let sigma_b = (b.bearing_variance_rad2 + floor * floor).sqrt();
-            if let Some((_, p)) = self.beacons.iter().find(|(a, _)| *a == b.id) {
+            if let Some((k, (_, p))) = self
+                .beacons
+                .iter()
+                .enumerate()
+                .find(|(_, (a, _))| *a == b.id)
+            {
+                self.rec.reading(
+                    self.t,
+                    format!("b{}", k + 1),
+                    Point::new(truth.x, truth.y),
+                    *p,
+                );
                 let (dx, dy) = (p.x - truth.x, p.y - truth.y);
                 let eb = angle_diff(b.bearing_rad, angle_diff(dy.atan2(dx), truth.theta));
                 let er = b.peak_rssi_dbm - path_loss.rssi_at(dx.hypot(dy));

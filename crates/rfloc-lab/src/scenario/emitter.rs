@@ -89,7 +89,6 @@ pub async fn run_trial(
     dir: &Path,
     opts: &SimOptions,
 ) -> anyhow::Result<TrialRecorder> {
-    let _ = opts;
     let full = scenario.spec.pipeline != Pipeline::EmitterPreliminary;
     let spec = |use_planner: bool, primary: bool| RunSpec {
         scenario,
@@ -159,8 +158,8 @@ pub async fn run_trial(
         )
     };
     let last = main.truth.last().map_or(Pose2::default(), |(_, p)| *p);
-    eprintln!(
-        "\n{} trial {trial} (seed {}): {} system {}, {} system {}; final true position ({:.2}, {:.2}); filter/raw error {}",
+    opts.note(&format!(
+        "{} trial {trial} (seed {}): {} system {}, {} system {}; final true position ({:.2}, {:.2}); filter/raw error {}",
         scenario.spec.name,
         scenario.trial_seed(trial),
         if full { "full" } else { "preliminary" },
@@ -173,6 +172,6 @@ pub async fn run_trial(
             || "—".to_string(),
             |(f, r)| format!("{f:.2} m / {r:.2} m")
         ),
-    );
+    ));
     Ok(rec)
 }

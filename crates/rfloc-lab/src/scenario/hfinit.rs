@@ -46,7 +46,7 @@ use rfloc_kts::{
 };
 use rfloc_pose::{angle_diff, EstimateMode, Pose2};
 use rfloc_sim::recorder::TrialRecorder;
-use rfloc_sim::Scenario;
+use rfloc_sim::{Point, Scenario};
 use rfloc_transport::{open, Recorder, SharedClock};
 use tokio_util::sync::CancellationToken;
 
@@ -299,6 +299,21 @@ pub async fn run_trial(
     let mut commanded = f64::NAN;
     let mut last_cmd_t = f64::NEG_INFINITY;
     let mut last_odom: Option<Pose2> = None;
+    // For the plot: each tag's UID, grid position and short name, and the antenna's position.
+    let tag_names: Vec<(Uid, Point, String)> = scenario
+        .world
+        .hf_tags
+        .iter()
+        .filter_map(|t| {
+            let name = if t.uid >> 56 == 0xE0 {
+                format!("{:016X}", t.uid)
+            } else {
+                format!("{:X}", t.uid)
+            };
+            Some((Uid::from_u64(full_uid(t.uid)).ok()?, t.position, name))
+        })
+        .collect();
+    let hf_model = scenario.hf_model();
     loop {
         // One tick: the robot moves under the last command, the reader scans at the new pose.
         let (o, t) = base.tick().await?;
@@ -337,13 +352,21 @@ pub async fn run_trial(
                 .context("the KTS driver stopped")?;
             if let Some(e) = DeviceEvent::from_tag_event("hf", &ev) {
                 let _ = pipeline.handle(&e);
+                if let Some((_, at, name)) = tag_names.iter().find(|(u, _, _)| *u == ev.uid) {
+                    let (ax, ay) = hf_model.antenna_position(&t.truth);
+                    rec.reading(ev.t, name.clone(), Point::new(ax, ay), *at);
+                }
             }
         }
         read_all(&reader_sink, scan.tx_bytes).await?;
         if now >= end_s || turn.finished_at.is_some_and(|f| now > f + 2.0) {
             break;
         }
+        let stops_before = turn.stops;
         let w = turn.command(now);
+        if turn.stops > stops_before {
+            rec.stop(now, t.truth);
+        }
         // Re-send every 0.5 simulated seconds to keep the robot's watchdog fed.
         if (w - commanded).abs() > 1e-9 || now - last_cmd_t > 0.5 {
             base.set_velocity(0.0, w).await?;

@@ -627,6 +627,7 @@ pub async fn run_trial(
         let truth = rig.truth();
         rec.truth(t, truth);
         rec.estimate(t, est);
+        rec.capture_time(t, now);
         track_err.push(dist(&est, &truth));
         filter_err.push(dist(&hist.pose, &truth));
         odom_err.push(dist(&odom_filter.estimate(&odom_db, t).pose, &truth));

@@ -31,7 +31,7 @@ pub fn estimate(i: u64) -> PoseEstimate {
 }
 
 /// The events, in time order: 3 poses (3 messages on each pose channel), 1 path, 2 transform
-/// sets, 1 target, 1 beacon map, 1 tag map, 1 particle set, 4 scans, 2 status lines and 5 link
+/// sets, 1 target, 1 beacon map, 1 tag map, 1 particle set, 1 true pose and 1 true path, 4 scans, 2 status lines and 5 link
 /// chunks.
 pub fn events() -> Vec<VizEvent> {
     let mut out = Vec::new();
@@ -89,6 +89,14 @@ pub fn events() -> Vec<VizEvent> {
                 weight: 0.01,
             })
             .collect(),
+    });
+    out.push(VizEvent::Truth {
+        stamp: stamp(360),
+        pose: Pose2::new(1.1, 2.0, 0.0),
+    });
+    out.push(VizEvent::TruthPath {
+        stamp: stamp(361),
+        poses: (0..3).map(|i| estimate(i).pose).collect(),
     });
     for i in 0..4 {
         out.push(VizEvent::Scan {
@@ -151,6 +159,8 @@ pub fn expected_counts() -> BTreeMap<&'static str, u64> {
         (topics::STATUS, 2),
         (topics::LINK, 5),
         (topics::OBSERVATION, 1),
+        (topics::TRUTH, 1),
+        (topics::TRUTH_PATH, 1),
     ])
 }
 
