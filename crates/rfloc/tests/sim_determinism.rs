@@ -1,6 +1,6 @@
 //! Determinism of simulated trials: `rfloc sim` run twice with one seed writes identical
 //! captures (byte for byte: the lock-step emulators and coalesced capture records leave nothing
-//! to timing) and identical truth and estimate files; another seed writes different ones, so
+//! to timing) and identical truth, estimate, `run.mcap` and plot files; another seed writes different ones, so
 //! the comparison can fail. Shortened runs of seed 003 case I, seed 002's 3×3 test and seed 001
 //! scenario A (full scenario: both systems reach the emitter within 20 s of simulated time)
 //! and seed 000 (150 exploration and 20 navigation steps).
@@ -85,6 +85,31 @@ fn assert_same(a: &Path, b: &Path, files: &[&str]) -> usize {
     total
 }
 
+/// Asserts both trials' `run.mcap` hold the same messages (topic, log time, bytes) in the same
+/// order. (The files are not byte for byte the same: the MCAP writer lists the schemas of its
+/// summary in no fixed order.)
+fn assert_same_mcap(a: &Path, b: &Path) {
+    let messages = |dir: &Path| -> Vec<(String, u64, Vec<u8>)> {
+        let bytes = read(&dir.join("run.mcap"));
+        mcap::MessageStream::new(&bytes)
+            .unwrap()
+            .map(|m| {
+                let m = m.unwrap();
+                (m.channel.topic.clone(), m.log_time, m.data.to_vec())
+            })
+            .collect()
+    };
+    let (x, y) = (messages(a), messages(b));
+    assert!(x.len() > 10, "run.mcap has {} messages", x.len());
+    if let Some(i) = (0..x.len().max(y.len())).find(|i| x.get(*i) != y.get(*i)) {
+        panic!(
+            "run.mcap differs between runs with one seed at message {i}: {:?} vs {:?}",
+            x.get(i).map(|m| (&m.0, m.1)),
+            y.get(i).map(|m| (&m.0, m.1))
+        );
+    }
+}
+
 fn assert_captures_differ(a: &Path, b: &Path, files: &[&str]) {
     assert!(
         files.iter().any(|f| read(&a.join(f)) != read(&b.join(f))),
@@ -101,7 +126,8 @@ fn seed003_case1_runs_are_identical() {
     let b = sim(&scenario, &tmp.path().join("b"));
     let caps = ["pioneer.cap", "xbee.cap"];
     let bytes = assert_same(&a, &b, &caps);
-    assert_same(&a, &b, &["truth.csv", "estimate.csv"]);
+    assert_same(&a, &b, &["truth.csv", "estimate.csv", "plot.svg"]);
+    assert_same_mcap(&a, &b);
     eprintln!(
         "seed003 case I: {} captures identical, {bytes} bytes",
         caps.len()
@@ -123,7 +149,8 @@ fn seed002_3x3_runs_are_identical() {
     let b = sim(&scenario, &tmp.path().join("b"));
     let caps = ["pioneer.cap", "kts.cap"];
     let bytes = assert_same(&a, &b, &caps);
-    assert_same(&a, &b, &["truth.csv", "estimate.csv"]);
+    assert_same(&a, &b, &["truth.csv", "estimate.csv", "plot.svg"]);
+    assert_same_mcap(&a, &b);
     eprintln!(
         "seed002 3x3: {} captures identical, {bytes} bytes",
         caps.len()
@@ -146,7 +173,8 @@ fn seed001_a_runs_are_identical() {
     // The scenario's system (full) and the other one (preliminary), each on its own link.
     let caps = ["pioneer.cap", "pioneer-preliminary.cap"];
     let bytes = assert_same(&a, &b, &caps);
-    assert_same(&a, &b, &["truth.csv", "estimate.csv"]);
+    assert_same(&a, &b, &["truth.csv", "estimate.csv", "plot.svg"]);
+    assert_same_mcap(&a, &b);
     eprintln!(
         "seed001 A: {} captures identical, {bytes} bytes",
         caps.len()
@@ -202,6 +230,7 @@ fn seed000_reduced_runs_are_identical() {
             "state-manifest.json",
         ],
     );
+    assert_same_mcap(&a, &b);
     eprintln!(
         "seed000 reduced: {} captures identical, {bytes} bytes",
         caps.len()

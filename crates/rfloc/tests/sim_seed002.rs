@@ -34,6 +34,43 @@ fn seed002_trial_initialises_within_the_targets() {
         );
     }
     assert!(out.path().join("report.md").exists());
+    // The plot shows the turn: its eight stops (true pose and heading), the tags read with
+    // their counts, the estimated initial pose and heading beside the true one; axes in metres
+    // and seconds.
+    let plot = std::fs::read_to_string(trial.join("plot.svg")).unwrap();
+    for label in [
+        "x (m)",
+        "y (m)",
+        "time (s)",
+        "position error (m)",
+        "heading error (°)",
+        "stop 1–8 (true pose)",
+        "reading (sensor → landmark)",
+        "landmark read (× count)",
+        "HF floor tag",
+        "true pose and heading",
+        "estimated pose and heading",
+    ] {
+        assert!(plot.contains(label), "plot.svg has no {label:?}");
+    }
+    // Tags read are labelled "UID ×count": the robot starts on tag 78D.
+    assert!(plot.contains("78D ×"), "the start tag was not read");
+    // run.mcap holds the truth and the estimate.
+    let bytes = std::fs::read(trial.join("run.mcap")).unwrap();
+    let summary = mcap::Summary::read(&bytes).unwrap().expect("a summary");
+    let stats = summary.stats.unwrap();
+    let count = |topic: &str| -> u64 {
+        summary
+            .channels
+            .iter()
+            .filter(|(_, c)| c.topic == topic)
+            .map(|(id, _)| stats.channel_message_counts.get(id).copied().unwrap_or(0))
+            .sum()
+    };
+    assert!(count("/rfloc/truth") > 50, "{}", count("/rfloc/truth"));
+    assert_eq!(count("/rfloc/pose"), 1);
+    assert_eq!(count("/rfloc/tags"), 1);
+    assert!(count("/rfloc/link") > 100);
     // Targets: ≤ 10 mm and ≤ 5° (the seed: 37.5 mm and 23° on its real test).
     let value = |name: &str| -> f64 {
         let row = stdout

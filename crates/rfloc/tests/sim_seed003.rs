@@ -1,8 +1,9 @@
 //! `rfloc sim` on seed 003 case I, shortened to a 40 s mission: the emulated Pioneer and XBee
 //! coordinator run on real ptys behind rfloc's drivers; the run must write its report, the
-//! trial's truth/estimate files and both device captures, localise within a loose bound, and
-//! give the same numbers when repeated with the same seed (identical files:
-//! `sim_determinism.rs`).
+//! trial's truth/estimate files, both device captures, a plot with axes, units and a legend, and
+//! a `run.mcap` that the `mcap` crate (and, with `RFLOC_PYTHON`, the Python `mcap` reader) reads
+//! back with the truth beside the estimate; localise within a loose bound, and give the same
+//! numbers when repeated with the same seed (identical files: `sim_determinism.rs`).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::path::{Path, PathBuf};
@@ -62,6 +63,7 @@ fn seed003_case1_short_run_end_to_end() {
         "truth.csv",
         "estimate.csv",
         "plot.svg",
+        "run.mcap",
         "pioneer.cap",
         "xbee.cap",
     ] {
@@ -80,6 +82,9 @@ fn seed003_case1_short_run_end_to_end() {
     assert!(pioneer > 300, "pioneer.cap has {pioneer} records");
     assert!(xbee > 40, "xbee.cap has {xbee} records");
 
+    check_plots(&out);
+    check_run_mcap(&trial);
+
     let rmse = metric(&table, "rmse_m");
     assert!(rmse.is_finite() && rmse < 1.0, "robot RMSE {rmse}\n{table}");
     let mapped = metric(&table, "beacons_mapped");
@@ -95,6 +100,119 @@ fn seed003_case1_short_run_end_to_end() {
             "{m}\n{table}\n{again}"
         );
     }
+}
+
+/// The trial's plot: both panels' axes with units, the legend's entries, the beacons, the
+/// sweeps as stops; the scenario's summary plot.
+fn check_plots(out: &Path) {
+    let plot = std::fs::read_to_string(out.join("trial-00/plot.svg")).unwrap();
+    assert!(plot.starts_with("<svg"), "not an SVG document");
+    for label in [
+        "x (m)",
+        "y (m)",
+        "time (s)",
+        "position error (m)",
+        "heading error (°)",
+        "scale: ",
+        "true path",
+        "estimated path",
+        "true pose and heading",
+        "estimated pose and heading",
+        "beacon (true)",
+        "landmark estimate",
+        "reading (sensor → landmark)",
+        "(true pose)",
+        "waypoint",
+        "start",
+        "beacon1",
+    ] {
+        assert!(plot.contains(label), "plot.svg has no {label:?}");
+    }
+    let summary = std::fs::read_to_string(out.join("summary.svg")).unwrap();
+    for label in [
+        "trial",
+        "position error (m)",
+        "fraction of estimates",
+        "RMSE",
+    ] {
+        assert!(summary.contains(label), "summary.svg has no {label:?}");
+    }
+}
+
+/// `run.mcap`: the true and the estimated poses, one per line of `truth.csv` and
+/// `estimate.csv`, both paths, the link bytes of both devices and the beacon map.
+fn check_run_mcap(trial: &Path) {
+    let path = trial.join("run.mcap");
+    let bytes = std::fs::read(&path).unwrap();
+    let summary = mcap::Summary::read(&bytes).unwrap().expect("a summary");
+    let stats = summary.stats.as_ref().expect("statistics");
+    let count = |topic: &str| -> u64 {
+        summary
+            .channels
+            .iter()
+            .filter(|(_, c)| c.topic == topic)
+            .map(|(id, _)| stats.channel_message_counts.get(id).copied().unwrap_or(0))
+            .sum()
+    };
+    let lines = |f: &str| -> u64 {
+        std::fs::read_to_string(trial.join(f))
+            .unwrap()
+            .lines()
+            .skip(1)
+            .count() as u64
+    };
+    assert_eq!(count("/rfloc/truth"), lines("truth.csv"));
+    assert_eq!(count("/rfloc/pose"), lines("estimate.csv"));
+    assert_eq!(count("/rfloc/truth/path"), 1);
+    assert_eq!(count("/rfloc/path"), 1);
+    assert_eq!(count("/rfloc/beacons"), 1);
+    assert!(count("/rfloc/link") > 300, "{}", count("/rfloc/link"));
+    // Link bytes of both devices; every message decodes.
+    let mut devices = std::collections::BTreeSet::new();
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        if m.channel.topic == "/rfloc/link" {
+            // linkbytes.LinkBytes: the timestamp (field 1: tag 0x0a, a short length, the
+            // message), then the device name (field 2: tag 0x12, length, text).
+            let d = &m.data;
+            assert_eq!(d[0], 0x0a);
+            let i = 2 + usize::from(d[1]);
+            assert_eq!(d[i], 0x12);
+            let n = usize::from(d[i + 1]);
+            devices.insert(String::from_utf8_lossy(&d[i + 2..i + 2 + n]).to_string());
+        }
+    }
+    assert!(
+        devices.contains("pioneer") && devices.contains("xbee"),
+        "{devices:?}"
+    );
+
+    // Another implementation reads it too (CI: a Python venv with the `mcap` package).
+    let Some(python) = std::env::var_os("RFLOC_PYTHON") else {
+        eprintln!("skipped the Python mcap reader: RFLOC_PYTHON not set");
+        return;
+    };
+    let script = workspace().join("tests/peers/mcap_read.py");
+    let py = Command::new(python)
+        .arg(&script)
+        .arg(&path)
+        .output()
+        .unwrap();
+    assert!(
+        py.status.success(),
+        "{}",
+        String::from_utf8_lossy(&py.stdout)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&py.stdout).unwrap();
+    for topic in ["/rfloc/truth", "/rfloc/pose", "/rfloc/link"] {
+        let c = &v["channels"][topic];
+        assert_eq!(c["count"], count(topic), "{topic}: {c}");
+        assert_eq!(c["decoded"], count(topic), "{topic}: {c}");
+    }
+    assert_eq!(
+        v["channels"]["/rfloc/truth"]["schema"],
+        "foxglove.PoseInFrame"
+    );
 }
 
 /// Parses a capture; checks its device, that times never go back and stay within the
