@@ -605,9 +605,9 @@ fn draw_map(
         legend.push((Sample::Cross(GOAL_C), format!("goal (± {tol} m)")));
     }
 
-    // Scale bar, bottom left.
+    // Scale bar, bottom left, inside the margin around the world; its length written beside it.
     let bar = nice_step(x1 - x0);
-    let (bx, by) = (x0 + 0.04 * (x1 - x0), y0 + 0.05 * (y1 - y0));
+    let (bx, by) = (x0 + 0.02 * (x1 - x0), y0 + 0.02 * (y1 - y0));
     chart
         .draw_series(std::iter::once(PathElement::new(
             vec![(bx, by), (bx + bar, by)],
@@ -617,8 +617,8 @@ fn draw_map(
     chart
         .draw_series(std::iter::once(Text::new(
             format!("scale: {}", metres(bar)),
-            (bx, by + 0.015 * (y1 - y0)),
-            TextStyle::from((FONT, 12)).pos(Pos::new(HPos::Left, VPos::Bottom)),
+            (bx + bar + 0.01 * (x1 - x0), by),
+            TextStyle::from((FONT, 12)).pos(Pos::new(HPos::Left, VPos::Center)),
         )))
         .map_err(err)?;
     Ok(legend)

@@ -100,6 +100,7 @@ pub async fn run_trial(
     let other = run_system(&spec(!full, false)).await?;
 
     let mut rec = TrialRecorder::new(scenario, trial);
+    rec.capture_time(0.0, main.capture_time_at_start);
     for (t, p) in &main.truth {
         rec.truth(*t, *p);
     }

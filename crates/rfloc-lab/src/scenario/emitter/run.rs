@@ -75,6 +75,8 @@ pub struct RunSpec<'a> {
 #[derive(Debug, Clone, Default)]
 pub struct RunOutcome {
     pub truth: Vec<(f64, Pose2)>,
+    /// The emulator's clock (the captures' time) at the run's time 0.
+    pub capture_time_at_start: f64,
     /// The robot's own pose (start pose composed with odometry) at each control step.
     pub pose_estimate: Vec<(f64, Pose2)>,
     /// First time the true position was within the goal tolerance (the referee's view).
@@ -428,6 +430,9 @@ impl Mission<'_> {
         for tick in 0u64.. {
             let (odometry, state) = base.tick().await?;
             let t = tick as f64 * TICK_S;
+            if tick == 0 {
+                out.capture_time_at_start = state.sim_time;
+            }
             // The referee: true pose of every tick, goal check.
             let truth = state.truth;
             out.truth.push((t, truth));
