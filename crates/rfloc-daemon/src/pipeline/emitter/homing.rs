@@ -247,7 +247,11 @@ impl EmitterHoming {
             pose,
             // A fleet goal is exact: no spread holds its arrival back.
             target: self.goal.or(self.target),
-            target_sigma_m: if self.goal.is_some() { None } else { self.target_sigma },
+            target_sigma_m: if self.goal.is_some() {
+                None
+            } else {
+                self.target_sigma
+            },
             grid: &self.planning_grid,
             scan: &self.scan,
             bumpers,
