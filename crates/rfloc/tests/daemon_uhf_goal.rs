@@ -136,7 +136,7 @@ async fn uhf_daemon_drives_to_a_goal_on_its_tag_map() {
     let dir = tempfile::tempdir().unwrap();
     let (_, trial, scenario) = explored();
     let survey = rfloc_snapshot::Survey::load(
-        &rfloc_snapshot::state_set::resolve(&trial, std::path::Path::new("survey.json")).unwrap(),
+        &rfloc_snapshot::state_set::resolve(trial, std::path::Path::new("survey.json")).unwrap(),
     )
     .unwrap();
     let (start, goal) = start_and_goal(&survey);
