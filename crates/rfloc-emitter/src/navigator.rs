@@ -201,6 +201,14 @@ impl EmitterNavigator {
         self.plans
     }
 
+    /// Sets the distance at which the target counts as reached (for example a fleet goal's
+    /// tolerance, tighter than the emitter's arrival distance).
+    pub fn set_arrival_distance(&mut self, metres: f64) {
+        if metres.is_finite() && metres > 0.0 {
+            self.config.arrival_distance_m = metres;
+        }
+    }
+
     /// Forgets the current plan (it will be recomputed on the next step).
     pub fn clear_plan(&mut self) {
         self.path.clear();

@@ -81,61 +81,42 @@ impl Report {
     /// name (`metrics`), the published values (`published`), per-trial outcomes and the notes.
     #[must_use]
     pub fn json(&self) -> String {
-        let num = |v: f64| {
-            if v.is_finite() {
-                format!("{v}")
-            } else {
-                "null".to_string()
-            }
-        };
-        let mut s = String::from("{\n");
-        let _ = writeln!(s, "  \"scenario\": {},", json_str(&self.scenario));
-        let _ = writeln!(s, "  \"published_source\": {},", json_str(&self.source));
-        let _ = writeln!(s, "  \"trials\": {},", self.trials);
-        let _ = writeln!(s, "  \"failures\": {},", self.failures());
-        let metrics: Vec<String> = self
+        use serde_json::{json, Map, Value};
+        // Non-finite numbers become null (serde_json has no NaN).
+        let num = |v: f64| Value::from(v);
+        let metrics: Map<String, Value> = self
+            .rows
+            .iter()
+            .filter_map(|r| r.rfloc.map(|v| (r.metric.clone(), num(v))))
+            .collect();
+        let published: Map<String, Value> = self
             .rows
             .iter()
             .filter_map(|r| {
-                r.rfloc
-                    .map(|v| format!("    {}: {}", json_str(&r.metric), num(v)))
+                r.published
+                    .map(|p| (r.metric.clone(), p.map_or(Value::Null, num)))
             })
             .collect();
-        let _ = writeln!(s, "  \"metrics\": {{\n{}\n  }},", metrics.join(",\n"));
-        let published: Vec<String> = self
-            .rows
-            .iter()
-            .filter_map(|r| {
-                r.published.map(|p| {
-                    format!(
-                        "    {}: {}",
-                        json_str(&r.metric),
-                        p.map_or_else(|| "null".to_string(), num)
-                    )
-                })
-            })
-            .collect();
-        if published.is_empty() {
-            s.push_str("  \"published\": {},\n");
-        } else {
-            let _ = writeln!(s, "  \"published\": {{\n{}\n  }},", published.join(",\n"));
-        }
-        let outcomes: Vec<String> = self
+        let outcomes: Vec<Value> = self
             .outcomes
             .iter()
             .map(|(trial, seed, ok, why)| {
-                let why: Vec<String> = why.iter().map(|w| json_str(w)).collect();
-                format!(
-                    "    {{ \"trial\": {trial}, \"seed\": {seed}, \"success\": {ok}, \"failures\": [{}] }}",
-                    why.join(", ")
-                )
+                json!({ "trial": trial, "seed": seed, "success": ok, "failures": why })
             })
             .collect();
-        let _ = writeln!(s, "  \"outcomes\": [\n{}\n  ],", outcomes.join(",\n"));
-        let notes: Vec<String> = self.notes.iter().map(|n| json_str(n)).collect();
-        let _ = writeln!(s, "  \"notes\": [{}]", notes.join(", "));
-        s.push_str("}\n");
-        s
+        let report = json!({
+            "scenario": self.scenario,
+            "published_source": self.source,
+            "trials": self.trials,
+            "failures": self.failures(),
+            "metrics": metrics,
+            "published": published,
+            "outcomes": outcomes,
+            "notes": self.notes,
+        });
+        let mut text = serde_json::to_string_pretty(&report).unwrap_or_default();
+        text.push('\n');
+        text
     }
 
     /// A plain-text table (Markdown pipe table).
@@ -196,25 +177,6 @@ impl Report {
         }
         s
     }
-}
-
-/// A JSON string literal.
-fn json_str(v: &str) -> String {
-    let mut out = String::with_capacity(v.len() + 2);
-    out.push('"');
-    for c in v.chars() {
-        match c {
-            '"' => out.push_str("\\\""),
-            '\\' => out.push_str("\\\\"),
-            '\n' => out.push_str("\\n"),
-            c if (c as u32) < 0x20 => {
-                let _ = write!(out, "\\u{:04x}", c as u32);
-            }
-            c => out.push(c),
-        }
-    }
-    out.push('"');
-    out
 }
 
 #[cfg(test)]

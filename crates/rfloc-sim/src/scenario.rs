@@ -203,6 +203,18 @@ pub struct Scenario {
     pub path: PathBuf,
 }
 
+/// Removes every `null` member of the objects in `v` (options left unset), recursively.
+fn drop_nulls(v: &mut serde_json::Value) {
+    match v {
+        serde_json::Value::Object(map) => {
+            map.retain(|_, m| !m.is_null());
+            map.values_mut().for_each(drop_nulls);
+        }
+        serde_json::Value::Array(items) => items.iter_mut().for_each(drop_nulls),
+        _ => {}
+    }
+}
+
 fn invalid(path: &Path, text: &str, key: &str, message: impl Into<String>) -> SimError {
     SimError::Invalid {
         path: path.to_path_buf(),
@@ -499,7 +511,9 @@ impl Scenario {
 
     /// A 64-bit FNV-1a hash of what the experiment is: the resolved world and every scenario
     /// setting except its name, description, source, seed reference, base seed and trial
-    /// count. Two files describing the same experiment have the same fingerprint.
+    /// count. Two files describing the same experiment have the same fingerprint. The settings
+    /// are hashed as canonical JSON without the options a file leaves unset, so a new optional
+    /// key does not change the fingerprint of files that do not use it.
     #[must_use]
     pub fn fingerprint(&self) -> u64 {
         let mut spec = self.spec.clone();
@@ -511,7 +525,9 @@ impl Scenario {
         spec.trials = 1;
         spec.world = None;
         spec.world_file = None;
-        let text = format!("{spec:?}\n{:?}", self.world);
+        let mut settings = serde_json::to_value(&spec).unwrap_or(serde_json::Value::Null);
+        drop_nulls(&mut settings);
+        let text = format!("{settings}\n{:?}", self.world);
         text.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| {
             (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
         })

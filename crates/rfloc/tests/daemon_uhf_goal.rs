@@ -16,6 +16,18 @@ fn workspace() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
+/// The exploration both tests drive on (run once per test binary): its folder, the trial
+/// folder (survey, tag map) and the scenario file.
+fn explored() -> &'static (tempfile::TempDir, PathBuf, PathBuf) {
+    static EXPLORED: std::sync::OnceLock<(tempfile::TempDir, PathBuf, PathBuf)> =
+        std::sync::OnceLock::new();
+    EXPLORED.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let (trial, scenario) = explore(dir.path());
+        (dir, trial, scenario)
+    })
+}
+
 /// Explores the world and returns the trial folder (survey, tag map) and the scenario file.
 fn explore(dir: &Path) -> (PathBuf, PathBuf) {
     let world = workspace().join("scenarios/worlds/seed000-5x5.toml");
@@ -64,21 +76,18 @@ fn start_and_goal(survey: &rfloc_snapshot::Survey) -> (rfloc_pose::Pose2, (f64, 
     (start, (goal.x, goal.y))
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn uhf_daemon_drives_to_a_goal_on_its_tag_map() {
-    let dir = tempfile::tempdir().unwrap();
-    let (trial, scenario) = explore(dir.path());
-    let survey = rfloc_snapshot::Survey::load(
-        &rfloc_snapshot::state_set::resolve(&trial, std::path::Path::new("survey.json")).unwrap(),
-    )
-    .unwrap();
-    let (start, goal) = start_and_goal(&survey);
-    let port = common::free_port();
-    let cfg = dir.path().join("robot.toml");
-    std::fs::write(
-        &cfg,
-        format!(
-            r#"[robot]
+/// The UHF robot's file: its tag map and survey from `trial`, the simulated world of
+/// `scenario`, the robot at `start`, `goal_line` in `[estimator]` and `extra` sections.
+fn robot_file(
+    trial: &Path,
+    scenario: &Path,
+    start: rfloc_pose::Pose2,
+    goal_line: &str,
+    extra: &str,
+    port: u16,
+) -> String {
+    format!(
+        r#"[robot]
 name = "uhf-goal-e2e"
 
 [[device]]
@@ -97,14 +106,14 @@ reads_per_snapshot = 2
 pipeline = "snapshot"
 survey = "survey.json"
 tag_map = "tag-map.json"
-goal = [{gx}, {gy}]
+{goal_line}
 
 [pose]
 tcp = "127.0.0.1:{port}"
 
 [state]
 dir = {trial:?}
-
+{extra}
 [simulation]
 scenario = {scenario:?}
 time_scale = 5.0
@@ -114,13 +123,34 @@ motion = "still"
 start = [{sx}, {sy}, {sh}]
 slip_sigma = 0.02
 "#,
-            gx = goal.0,
-            gy = goal.1,
-            sx = start.x,
-            sy = start.y,
-            sh = start.theta.to_degrees(),
-            trial = trial.display().to_string(),
-            scenario = scenario.display().to_string(),
+        sx = start.x,
+        sy = start.y,
+        sh = start.theta.to_degrees(),
+        trial = trial.display().to_string(),
+        scenario = scenario.display().to_string(),
+    )
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn uhf_daemon_drives_to_a_goal_on_its_tag_map() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, trial, scenario) = explored();
+    let survey = rfloc_snapshot::Survey::load(
+        &rfloc_snapshot::state_set::resolve(trial, std::path::Path::new("survey.json")).unwrap(),
+    )
+    .unwrap();
+    let (start, goal) = start_and_goal(&survey);
+    let port = common::free_port();
+    let cfg = dir.path().join("robot.toml");
+    std::fs::write(
+        &cfg,
+        robot_file(
+            trial,
+            scenario,
+            start,
+            &format!("goal = [{}, {}]", goal.0, goal.1),
+            "",
+            port,
         ),
     )
     .unwrap();
@@ -171,5 +201,67 @@ slip_sigma = 0.02
         goal.0,
         goal.1,
         common::logged(&log, "goal reached", "actions")
+    );
+}
+
+/// The same robot as a VDA 5050 vehicle: no goal in its file; a fleet manager's order (from
+/// where the robot localised itself to the surveyed goal) is planned over the survey and driven
+/// in seed actions, and the order finishes at its last node. The node tolerance (0.25 m) is
+/// what the robot's estimate must reach; its true pose must then be within the seed's 0.4 m.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn uhf_fleet_vehicle_drives_an_order_on_its_tag_map() {
+    let Some(mosquitto) =
+        common::fleet::require_mosquitto("uhf_fleet_vehicle_drives_an_order_on_its_tag_map")
+    else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let (_, trial, scenario) = explored();
+    let survey = rfloc_snapshot::Survey::load(
+        &rfloc_snapshot::state_set::resolve(trial, std::path::Path::new("survey.json")).unwrap(),
+    )
+    .unwrap();
+    let (start, goal) = start_and_goal(&survey);
+    let broker = common::fleet::Broker::start(&mosquitto, dir.path()).await;
+    let mut m = common::fleet::Manager::connect(broker.port, "manager-uhf").await;
+    let serial = "uhf-1";
+    let fleet = format!(
+        "\n[fleet]\nbroker = \"{}\"\nmanufacturer = \"rfloc\"\nserial_number = \"{serial}\"\n\
+         node_tolerance_m = 0.25\n",
+        broker.address()
+    );
+    let cfg = dir.path().join("robot.toml");
+    let port = common::free_port();
+    std::fs::write(&cfg, robot_file(trial, scenario, start, "", &fleet, port)).unwrap();
+    let daemon = common::Daemon::start(&cfg, "info");
+    let Some(s) = m
+        .wait_for(serial, "state", 60.0, |s| {
+            s["agvPosition"]["positionInitialized"] == true
+        })
+        .await
+    else {
+        daemon.fail_with_log_tail("never localised").await
+    };
+    let (x0, y0) = common::fleet::position(&s).unwrap();
+    m.order(serial, serial, "u1", &[(x0, y0), goal]).await;
+    let done = m
+        .wait_for(serial, "state", 150.0, |s| {
+            s["orderId"] == "u1" && s["lastNodeId"] == "u1-n1"
+        })
+        .await;
+    if done.is_none() {
+        daemon.fail_with_log_tail("order u1 not finished").await;
+    }
+    let (status, log) = daemon.terminate().await;
+    assert!(status.success(), "{log}");
+    assert!(log.contains("fleet order accepted"), "{log}");
+    let (tx, ty) = (
+        common::logged(&log, "simulated robot final true pose", "x"),
+        common::logged(&log, "simulated robot final true pose", "y"),
+    );
+    let miss = (tx - goal.0).hypot(ty - goal.1);
+    assert!(
+        miss <= 0.4,
+        "order finished {miss:.2} m from its last node ({tx:.2}, {ty:.2})\n{log}"
     );
 }

@@ -339,6 +339,76 @@ async fn fleet_hf_robot_refuses_orders_and_turns_for_init_position() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn fleet_emitter_robot_drives_an_order_with_its_navigator_then_holds() {
+    let Some(mosquitto) =
+        require_mosquitto("fleet_emitter_robot_drives_an_order_with_its_navigator_then_holds")
+    else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let broker = Broker::start(&mosquitto, dir.path()).await;
+    let mut m = Manager::connect(broker.port, "manager-e").await;
+    let serial = "robot-e";
+    // The emitter robot of config/sim-emitter.toml (seed 001 scenario A: the emitter 4 m ahead
+    // down a clear corridor), with a fleet link: the order's goal takes the emitter's place as
+    // the navigator's target (laser map, A*), so the robot stops at the node, not at the emitter.
+    let fleet = format!(
+        "[fleet]\nbroker = \"{}\"\nmanufacturer = \"rfloc\"\nserial_number = \"{serial}\"\n\
+         node_tolerance_m = 0.25\n\n[pose]",
+        broker.address()
+    );
+    let path = common::sim_robot_file(
+        dir.path(),
+        "sim-emitter.toml",
+        "127.0.0.1:2951",
+        common::free_port(),
+        &[
+            ("[pose]", fleet.as_str()),
+            ("time_scale = 5.0", "time_scale = 10.0"),
+        ],
+    );
+    let daemon = common::Daemon::start(&path, "info");
+    let (x0, y0) = initialised_position(&mut m, serial).await;
+    let factsheet = m.all.iter().find(|x| x.kind() == "factsheet").cloned();
+    assert_eq!(
+        factsheet.expect("no factsheet").json["typeSpecification"]["seriesName"],
+        "rfloc emitter"
+    );
+    // 1.5 m ahead and 0.4 m to the side: short of the emitter, which is 4 m ahead.
+    let nodes = [(x0, y0), (x0 + 1.5, y0 + 0.4)];
+    m.order(serial, serial, "e1", &nodes).await;
+    let mut drove = false;
+    let (s, daemon) = state_where(&mut m, daemon, serial, 120.0, "order e1 done", |s| {
+        drove |= s["driving"] == true;
+        s["orderId"] == "e1" && s["lastNodeId"] == "e1-n1"
+    })
+    .await;
+    assert!(drove, "never driving");
+    assert!(s["nodeStates"].as_array().unwrap().is_empty(), "{s:#}");
+    let (x, y) = position(&s).unwrap();
+    assert!(
+        (x - nodes[1].0).hypot(y - nodes[1].1) <= 0.25,
+        "finished at ({x}, {y}), node at {:?}",
+        nodes[1]
+    );
+    // With the order done the robot holds: it does not go on to the emitter.
+    tokio::time::sleep(std::time::Duration::from_secs(2)).await;
+    let (s, daemon) = state_where(&mut m, daemon, serial, 20.0, "a later state", |s| {
+        s["orderId"] == "e1"
+    })
+    .await;
+    let (x2, y2) = position(&s).unwrap();
+    assert!(
+        (x2 - x).hypot(y2 - y) < 0.3,
+        "moved on after the order: ({x}, {y}) → ({x2}, {y2})"
+    );
+    let (status, log) = daemon.terminate().await;
+    assert!(status.success(), "{status:?}\n{log}");
+    assert!(log.contains("fleet order accepted"), "{log}");
+    assert!(!log.contains("panicked"), "{log}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn fleet_vehicle_connects_over_tls_with_a_password() {
     let Some(mosquitto) = require_mosquitto("fleet_vehicle_connects_over_tls_with_a_password")
     else {

@@ -295,7 +295,8 @@ impl EmitterPipeline {
         }
         let cmd = self.homing.command(t, pose, self.bumpers);
         let arrived = cmd.state == NavigatorState::Arrived;
-        if arrived && !self.arrived {
+        let homing = matches!(self.fleet, FleetDrive::Homing);
+        if homing && arrived && !self.arrived {
             self.counters.arrivals += 1;
             let (x, y) = self.estimate.map_or((f64::NAN, f64::NAN), |p| (p.x, p.y));
             let arrivals = self.counters.arrivals;
@@ -438,13 +439,16 @@ impl Pipeline for EmitterPipeline {
         true
     }
 
-    /// A goal takes the emitter's place as the navigator's target (the navigator stops on its
-    /// own at `arrival_distance_m`, the pipeline within 0.8 of the goal's tolerance); `None`
-    /// holds the robot still. The emitter is still tracked meanwhile.
+    /// A goal takes the emitter's place as the navigator's target: the pipeline holds the
+    /// robot within 0.8 of the goal's tolerance, and the navigator's own arrival distance is
+    /// tightened to 0.7 of it, so it does not stop short at the emitter's arrival distance.
+    /// `None` holds the robot still. The emitter is still tracked meanwhile.
     fn set_goal(&mut self, goal: Option<Goal>) -> bool {
         self.fleet = goal.map_or(FleetDrive::Hold, FleetDrive::Goal);
+        // The navigator stops a little inside the tolerance, where the pipeline holds.
+        let arrival = goal.map_or(f64::INFINITY, |g| 0.7 * g.tolerance_m);
         self.homing
-            .set_goal(goal.map(|g| rfloc_emitter::Point2::new(g.x, g.y)));
+            .set_goal(goal.map(|g| rfloc_emitter::Point2::new(g.x, g.y)), arrival);
         if goal.is_none() {
             self.requests.push(Request::Velocity { v: 0.0, w: 0.0 });
         }

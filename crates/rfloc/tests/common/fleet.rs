@@ -54,12 +54,33 @@ impl Broker {
             port,
             child: None,
         };
+        // A free port can be taken by another test before mosquitto binds it: try others.
+        for _ in 0..3 {
+            match b.spawn().await {
+                Ok(()) => return b,
+                Err(e) => {
+                    eprintln!("{e}; trying another port");
+                    if let Some(mut child) = b.child.take() {
+                        let _ = child.kill();
+                        let _ = child.wait();
+                    }
+                    b.port = super::free_port();
+                }
+            }
+        }
         b.restart().await;
         b
     }
 
     /// Starts (again) on the same port.
     pub async fn restart(&mut self) {
+        if let Err(e) = self.spawn().await {
+            panic!("{e}");
+        }
+    }
+
+    /// Starts mosquitto on `self.port` and waits until it takes connections.
+    async fn spawn(&mut self) -> Result<(), String> {
         let conf = self.dir.join(format!("mosquitto-{}.conf", self.port));
         if !conf.exists() {
             std::fs::write(
@@ -81,13 +102,29 @@ impl Broker {
             .spawn()
             .unwrap();
         self.child = Some(child);
-        for _ in 0..200 {
+        for _ in 0..400 {
             if std::net::TcpStream::connect(("127.0.0.1", self.port)).is_ok() {
-                return;
+                return Ok(());
+            }
+            let exited = self
+                .child
+                .as_mut()
+                .and_then(|c| c.try_wait().ok().flatten());
+            if let Some(status) = exited {
+                let log =
+                    std::fs::read_to_string(self.dir.join(format!("mosquitto-{}.log", self.port)))
+                        .unwrap_or_default();
+                return Err(format!(
+                    "mosquitto exited ({status}) on port {}:\n{log}",
+                    self.port
+                ));
             }
             tokio::time::sleep(Duration::from_millis(25)).await;
         }
-        panic!("mosquitto did not listen on port {}", self.port);
+        Err(format!(
+            "mosquitto did not listen on port {} within 10 s",
+            self.port
+        ))
     }
 
     /// A broker with a plain anonymous listener (`port`, for the manager) and a TLS listener on

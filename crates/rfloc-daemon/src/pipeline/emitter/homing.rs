@@ -188,9 +188,19 @@ impl EmitterHoming {
         }
     }
 
-    /// Drives to `goal` instead of the emitter (`None`: the emitter again).
-    pub fn set_goal(&mut self, goal: Option<Point2>) {
+    /// Drives to `goal` instead of the emitter (`None`: the emitter again), stopping within
+    /// `arrival_m` of it (at most the configured arrival distance); the emitter's own arrival
+    /// distance is restored with `None`.
+    pub fn set_goal(&mut self, goal: Option<Point2>, arrival_m: f64) {
         self.goal = goal;
+        let configured = self.config.navigator.arrival_distance_m;
+        let arrival = if goal.is_some() {
+            configured.min(arrival_m)
+        } else {
+            configured
+        };
+        self.navigator.set_arrival_distance(arrival);
+        self.navigator.clear_plan();
     }
 
     /// The configuration.
