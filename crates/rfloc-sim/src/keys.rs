@@ -28,7 +28,8 @@ const COMMON: &[&str] = &[
 ];
 
 /// Seed 000 (`rfloc-lab` `scenario::snapshot`): Table 4's action noise and limits, the body
-/// for collisions, the UHF reader model, goals, exploration and navigation steps.
+/// for collisions, the UHF reader model, goals, exploration and navigation steps, and the model
+/// mismatch.
 const SNAPSHOT: &[&str] = &[
     "robot.drive.sigma_v",
     "robot.drive.sigma_omega",
@@ -40,6 +41,7 @@ const SNAPSHOT: &[&str] = &[
     "params.exploration_steps",
     "params.navigation_steps",
     "params.action_duration_s",
+    "mismatch.*",
 ];
 
 /// Seed 001: the body (collisions, avoidance distance), the four receivers' model, the laser's
@@ -105,10 +107,6 @@ const WHY: &[(&str, &str)] = &[
         "sensors.scanner",
         "the emitter trial's laser is the URG emulator (682 steps over 240°); only \
          `max_range`, `noise_sigma` and `mount_offset` act",
-    ),
-    (
-        "mismatch",
-        "the seed 000 snapshot trial has no model-mismatch option",
     ),
 ];
 

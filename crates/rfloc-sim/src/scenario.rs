@@ -90,7 +90,9 @@ pub struct MismatchSpec {
     /// Scale of the estimator's signal-to-distance model: for any signal level it infers a
     /// distance `scale` times the one the simulator's model gives (1.15 = ranges 15 % long).
     /// Emitter: `A1` shifted by `10·A2·log10(scale)` dB; EKF-SLAM: `P_ref` shifted by
-    /// `10·η·log10(scale)` dB; HF: every RSSI band edge (cm) multiplied by `scale`.
+    /// `10·η·log10(scale)` dB; HF: every RSSI band edge (cm) multiplied by `scale`; UHF
+    /// snapshots: the robot's reader model reads a tag at distance `d` as the simulator's does
+    /// at `d / scale` (`ReadModel::distance_scale`).
     pub scale: f64,
 }
 

@@ -48,6 +48,14 @@ pub struct ReadModel {
     pub reads_per_snapshot: usize,
     /// Antenna position along the robot's x axis, metres.
     pub antenna_offset: f64,
+    /// The model reads a tag at distance `d` as the fit does at `d / distance_scale` (1: the
+    /// fit itself). A miscalibrated robot (a simulation's `[mismatch] scale`) has another value.
+    #[serde(default = "unit_scale")]
+    pub distance_scale: f64,
+}
+
+fn unit_scale() -> f64 {
+    1.0
 }
 
 impl ReadModel {
@@ -63,6 +71,7 @@ impl ReadModel {
             dropout: 0.05,
             reads_per_snapshot: reads.max(1),
             antenna_offset: 0.0,
+            distance_scale: 1.0,
         }
     }
 
@@ -71,6 +80,11 @@ impl ReadModel {
     pub fn mean_rss(&self, x: f64, y: f64) -> f64 {
         let d = x.hypot(y);
         let cos = if d > 0.0 { (x / d).abs() } else { 1.0 };
+        let d = if self.distance_scale > 0.0 {
+            d / self.distance_scale
+        } else {
+            d
+        };
         let scaled = if x >= 0.0 {
             d
         } else {
@@ -536,6 +550,25 @@ mod tests {
             }
         }
         s
+    }
+
+    #[test]
+    fn a_distance_scale_reads_every_tag_as_scale_times_as_far() {
+        let fit = ReadModel::seed000(1000.0, 1);
+        let long = ReadModel {
+            distance_scale: 1.15,
+            ..fit.clone()
+        };
+        for (x, y) in [(0.3, 0.0), (0.5, 0.4), (-0.2, 0.1), (1.0, -0.7)] {
+            let want = fit.mean_rss(x, y);
+            let got = long.mean_rss(1.15 * x, 1.15 * y);
+            assert!((got - want).abs() < 1e-9 * want.max(1.0), "{got} vs {want}");
+        }
+        // A tag map written before the field existed reads as the fit itself.
+        let mut json = serde_json::to_value(&fit).unwrap();
+        json.as_object_mut().unwrap().remove("distance_scale");
+        let old: ReadModel = serde_json::from_value(json).unwrap();
+        assert_eq!(old, fit);
     }
 
     #[test]

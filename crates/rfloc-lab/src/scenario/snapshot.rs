@@ -246,7 +246,7 @@ fn tag_map_variants() -> Vec<(&'static str, TagMapConfig)> {
 
 /// The reader model the robot localises with: seed 000's propagation fit (Table 3.2), with the
 /// scenario's threshold, read noise, dropout and antenna mounting taken as the robot's
-/// calibration of its reader.
+/// calibration of its reader, and `[mismatch] scale` as a miscalibrated distance scale.
 fn read_model(scenario: &Scenario) -> ReadModel {
     let uhf = scenario.uhf_model();
     ReadModel {
@@ -254,6 +254,7 @@ fn read_model(scenario: &Scenario) -> ReadModel {
         read_sigma: uhf.noise_sigma,
         dropout: uhf.dropout,
         antenna_offset: uhf.antenna_offset,
+        distance_scale: scenario.spec.mismatch.map_or(1.0, |m| m.scale),
         ..ReadModel::seed000(uhf.threshold, READS_PER_STEP)
     }
 }
