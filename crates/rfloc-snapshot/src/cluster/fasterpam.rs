@@ -17,13 +17,6 @@ use crate::distance::DissimilarityMatrix;
 /// Improvements smaller than this are treated as no improvement (guards against float cycles).
 const MIN_GAIN: f64 = 1e-12;
 
-#[derive(Debug, Clone, Copy)]
-struct Rank {
-    /// Index into the medoid list.
-    slot: usize,
-    dist: f64,
-}
-
 /// Seeded k-means++-style initialisation: the first medoid uniformly, then each next medoid with
 /// probability proportional to the squared distance to the nearest chosen one.
 #[must_use]
@@ -34,10 +27,16 @@ pub fn init_kmeanspp(d: &DissimilarityMatrix, k: usize, seed: u64) -> Vec<usize>
         return Vec::new();
     }
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let mut medoids = vec![rng.random_range(0..n)];
-    let mut nearest: Vec<f64> = (0..n).map(|o| d.get(o, medoids[0])).collect();
+    let first = rng.random_range(0..n);
+    let mut medoids = vec![first];
+    let mut chosen = vec![false; n];
+    if let Some(c) = chosen.get_mut(first) {
+        *c = true;
+    }
+    let mut nearest: Vec<f64> = d.row(first).to_vec();
+    // Squared distances to the nearest chosen medoid, and their sum.
+    let mut weights: Vec<f64> = nearest.iter().map(|x| x * x).collect();
     while medoids.len() < k {
-        let weights: Vec<f64> = nearest.iter().map(|x| x * x).collect();
         let total: f64 = weights.iter().sum();
         let next = if total > 0.0 {
             let mut target = rng.random::<f64>() * total;
@@ -58,65 +57,123 @@ pub fn init_kmeanspp(d: &DissimilarityMatrix, k: usize, seed: u64) -> Vec<usize>
         // All remaining objects coincide with a medoid: take the first non-medoid.
         let next = match next {
             Some(i) => i,
-            None => match (0..n).find(|i| !medoids.contains(i)) {
+            None => match chosen.iter().position(|c| !c) {
                 Some(i) => i,
                 None => break,
             },
         };
         medoids.push(next);
-        for (o, near) in nearest.iter_mut().enumerate() {
-            *near = near.min(d.get(o, next));
+        if let Some(c) = chosen.get_mut(next) {
+            *c = true;
+        }
+        for ((near, w), &dn) in nearest.iter_mut().zip(weights.iter_mut()).zip(d.row(next)) {
+            if dn < *near {
+                *near = dn;
+                *w = dn * dn;
+            }
         }
     }
     medoids
 }
 
-fn rank_all(d: &DissimilarityMatrix, medoids: &[usize], o: usize) -> (Rank, Rank) {
-    let mut best = Rank {
-        slot: 0,
-        dist: f64::INFINITY,
-    };
-    let mut second = Rank {
-        slot: 0,
-        dist: f64::INFINITY,
-    };
-    for (slot, &m) in medoids.iter().enumerate() {
-        let dist = d.get(o, m);
-        if dist < best.dist {
-            second = best;
-            best = Rank { slot, dist };
-        } else if dist < second.dist {
-            second = Rank { slot, dist };
-        }
-    }
-    (best, second)
+/// Nearest and second-nearest medoid of every object, as parallel arrays.
+struct Caches {
+    near_slot: Vec<usize>,
+    near: Vec<f64>,
+    sec_slot: Vec<usize>,
+    sec: Vec<f64>,
 }
 
-fn second_excluding(d: &DissimilarityMatrix, medoids: &[usize], o: usize, exclude: usize) -> Rank {
-    let mut second = Rank {
-        slot: exclude,
-        dist: f64::INFINITY,
-    };
+impl Caches {
+    fn new(d: &DissimilarityMatrix, medoids: &[usize]) -> Self {
+        let n = d.len();
+        let mut c = Self {
+            near_slot: vec![0; n],
+            near: vec![f64::INFINITY; n],
+            sec_slot: vec![0; n],
+            sec: vec![f64::INFINITY; n],
+        };
+        for (slot, &m) in medoids.iter().enumerate() {
+            for (o, &dist) in d.row(m).iter().enumerate() {
+                c.offer(o, slot, dist);
+            }
+        }
+        c
+    }
+
+    /// Takes medoid `slot` at distance `dist` into object `o`'s nearest/second ranking.
+    #[inline]
+    fn offer(&mut self, o: usize, slot: usize, dist: f64) {
+        let (Some(ns), Some(nd), Some(ss), Some(sd)) = (
+            self.near_slot.get_mut(o),
+            self.near.get_mut(o),
+            self.sec_slot.get_mut(o),
+            self.sec.get_mut(o),
+        ) else {
+            return;
+        };
+        if dist < *nd {
+            *ss = *ns;
+            *sd = *nd;
+            *ns = slot;
+            *nd = dist;
+        } else if dist < *sd {
+            *ss = slot;
+            *sd = dist;
+        }
+    }
+
+    /// Removal loss of every slot: `Σ_{o nearest to it} (d_s(o) − d_n(o))`.
+    fn removal_loss(&self, loss: &mut [f64]) {
+        loss.iter_mut().for_each(|l| *l = 0.0);
+        for ((&slot, &n), &s) in self.near_slot.iter().zip(&self.near).zip(&self.sec) {
+            if let Some(l) = loss.get_mut(slot) {
+                *l += s - n;
+            }
+        }
+    }
+}
+
+/// Second-nearest medoid of object `o` among `medoids`, not counting slot `exclude`.
+fn second_excluding(
+    d: &DissimilarityMatrix,
+    medoids: &[usize],
+    o: usize,
+    exclude: usize,
+) -> (usize, f64) {
+    let row = d.row(o);
+    let mut best = (exclude, f64::INFINITY);
     for (slot, &m) in medoids.iter().enumerate() {
         if slot == exclude {
             continue;
         }
-        let dist = d.get(o, m);
-        if dist < second.dist {
-            second = Rank { slot, dist };
+        let dist = row.get(m).copied().unwrap_or(f64::INFINITY);
+        if dist < best.1 {
+            best = (slot, dist);
         }
     }
-    second
+    best
 }
 
-fn removal_loss(near: &[Rank], sec: &[Rank], k: usize) -> Vec<f64> {
-    let mut loss = vec![0.0; k];
-    for (n, s) in near.iter().zip(sec) {
-        if let Some(l) = loss.get_mut(n.slot) {
-            *l += s.dist - n.dist;
+/// The change of total deviation for swapping candidate row `row` into each slot: fills
+/// `delta` (per slot) and returns the part shared by every slot.
+#[inline]
+fn swap_gains(row: &[f64], c: &Caches, loss_rm: &[f64], delta: &mut [f64]) -> f64 {
+    delta.copy_from_slice(loss_rm);
+    let mut acc = 0.0;
+    for (((&doj, &dn), &ds), &ns) in row.iter().zip(&c.near).zip(&c.sec).zip(&c.near_slot) {
+        if doj < dn {
+            acc += doj - dn;
+            if let Some(x) = delta.get_mut(ns) {
+                *x += dn - ds;
+            }
+        } else if doj < ds {
+            if let Some(x) = delta.get_mut(ns) {
+                *x += doj - ds;
+            }
         }
     }
-    loss
+    acc
 }
 
 /// Runs FasterPAM from the given initial medoids (object indices, duplicates removed).
@@ -127,9 +184,13 @@ fn removal_loss(near: &[Rank], sec: &[Rank], k: usize) -> Vec<f64> {
 pub fn fasterpam(d: &DissimilarityMatrix, init: Vec<usize>, max_iter: usize) -> Clustering {
     let n = d.len();
     let mut medoids: Vec<usize> = Vec::with_capacity(init.len());
+    let mut is_medoid = vec![false; n];
     for m in init {
-        if m < n && !medoids.contains(&m) {
-            medoids.push(m);
+        if let Some(f) = is_medoid.get_mut(m) {
+            if !*f {
+                *f = true;
+                medoids.push(m);
+            }
         }
     }
     let k = medoids.len();
@@ -142,18 +203,12 @@ pub fn fasterpam(d: &DissimilarityMatrix, init: Vec<usize>, max_iter: usize) -> 
             swaps: 0,
         };
     }
-    let mut is_medoid = vec![false; n];
-    for &m in &medoids {
-        if let Some(f) = is_medoid.get_mut(m) {
-            *f = true;
-        }
-    }
-    let (mut near, mut sec): (Vec<Rank>, Vec<Rank>) =
-        (0..n).map(|o| rank_all(d, &medoids, o)).unzip();
+    let mut caches = Caches::new(d, &medoids);
     let mut iterations = 0;
     let mut swaps = 0;
     if k < n {
-        let mut loss_rm = removal_loss(&near, &sec, k);
+        let mut loss_rm = vec![0.0; k];
+        caches.removal_loss(&mut loss_rm);
         let mut last_swap: Option<usize> = None;
         let mut delta = vec![0.0; k];
         'passes: while iterations < max_iter {
@@ -166,32 +221,14 @@ pub fn fasterpam(d: &DissimilarityMatrix, init: Vec<usize>, max_iter: usize) -> 
                 if is_medoid.get(xc).copied().unwrap_or(true) {
                     continue;
                 }
+                let row = d.row(xc);
                 let (best_slot, total) =
                     if k == 1 {
                         // Only one medoid: the change is the total deviation difference.
-                        let td: f64 = (0..n)
-                            .map(|o| d.get(o, xc) - near.get(o).map_or(0.0, |r| r.dist))
-                            .sum();
+                        let td: f64 = row.iter().zip(&caches.near).map(|(a, b)| a - b).sum();
                         (0, td)
                     } else {
-                        delta.copy_from_slice(&loss_rm);
-                        let mut acc = 0.0;
-                        for o in 0..n {
-                            let (Some(no), Some(so)) = (near.get(o), sec.get(o)) else {
-                                continue;
-                            };
-                            let doj = d.get(o, xc);
-                            if doj < no.dist {
-                                acc += doj - no.dist;
-                                if let Some(x) = delta.get_mut(no.slot) {
-                                    *x += no.dist - so.dist;
-                                }
-                            } else if doj < so.dist {
-                                if let Some(x) = delta.get_mut(no.slot) {
-                                    *x += doj - so.dist;
-                                }
-                            }
-                        }
+                        let acc = swap_gains(row, &caches, &loss_rm, &mut delta);
                         let (slot, best) = delta.iter().copied().enumerate().fold(
                             (0, f64::INFINITY),
                             |b, (i, v)| if v < b.1 { (i, v) } else { b },
@@ -199,16 +236,8 @@ pub fn fasterpam(d: &DissimilarityMatrix, init: Vec<usize>, max_iter: usize) -> 
                         (slot, best + acc)
                     };
                 if total < -MIN_GAIN {
-                    apply_swap(
-                        d,
-                        &mut medoids,
-                        &mut is_medoid,
-                        &mut near,
-                        &mut sec,
-                        best_slot,
-                        xc,
-                    );
-                    loss_rm = removal_loss(&near, &sec, k);
+                    apply_swap(d, &mut medoids, &mut is_medoid, &mut caches, best_slot, xc);
+                    caches.removal_loss(&mut loss_rm);
                     swaps += 1;
                     last_swap = Some(xc);
                 }
@@ -218,8 +247,8 @@ pub fn fasterpam(d: &DissimilarityMatrix, init: Vec<usize>, max_iter: usize) -> 
             }
         }
     }
-    let loss = near.iter().map(|r| r.dist).sum();
-    let assignment = near.iter().map(|r| r.slot).collect();
+    let loss = caches.near.iter().sum();
+    let assignment = caches.near_slot;
     Clustering {
         medoids,
         assignment,
@@ -233,8 +262,7 @@ fn apply_swap(
     d: &DissimilarityMatrix,
     medoids: &mut [usize],
     is_medoid: &mut [bool],
-    near: &mut [Rank],
-    sec: &mut [Rank],
+    c: &mut Caches,
     slot: usize,
     xc: usize,
 ) {
@@ -249,27 +277,43 @@ fn apply_swap(
     if let Some(f) = is_medoid.get_mut(xc) {
         *f = true;
     }
-    for (o, (no, so)) in near.iter_mut().zip(sec.iter_mut()).enumerate() {
-        let dn = d.get(o, xc);
-        if no.slot == slot {
-            if dn <= so.dist {
-                no.dist = dn;
+    let row = d.row(xc);
+    for (o, &dn) in row.iter().enumerate() {
+        let (Some(ns), Some(nd), Some(ss), Some(sd)) = (
+            c.near_slot.get(o).copied(),
+            c.near.get(o).copied(),
+            c.sec_slot.get(o).copied(),
+            c.sec.get(o).copied(),
+        ) else {
+            continue;
+        };
+        let (near, sec) = if ns == slot {
+            if dn <= sd {
+                ((ns, dn), (ss, sd))
             } else {
-                *no = *so;
-                *so = second_excluding(d, medoids, o, no.slot);
+                ((ss, sd), second_excluding(d, medoids, o, ss))
             }
-        } else if so.slot == slot {
-            if dn < no.dist {
-                *so = *no;
-                *no = Rank { slot, dist: dn };
+        } else if ss == slot {
+            if dn < nd {
+                ((slot, dn), (ns, nd))
             } else {
-                *so = second_excluding(d, medoids, o, no.slot);
+                ((ns, nd), second_excluding(d, medoids, o, ns))
             }
-        } else if dn < no.dist {
-            *so = *no;
-            *no = Rank { slot, dist: dn };
-        } else if dn < so.dist {
-            *so = Rank { slot, dist: dn };
+        } else if dn < nd {
+            ((slot, dn), (ns, nd))
+        } else if dn < sd {
+            ((ns, nd), (slot, dn))
+        } else {
+            continue;
+        };
+        if let (Some(a), Some(b), Some(e), Some(f)) = (
+            c.near_slot.get_mut(o),
+            c.near.get_mut(o),
+            c.sec_slot.get_mut(o),
+            c.sec.get_mut(o),
+        ) {
+            (*a, *b) = near;
+            (*e, *f) = sec;
         }
     }
 }
