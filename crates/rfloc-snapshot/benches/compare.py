@@ -2,7 +2,7 @@
 """Times the benchmark problems of benches/problems.rs in Python (python-kmedoids FasterPAM,
 pymdptoolbox ValueIteration) and prints them next to the Rust timings.
 
-Usage: compare.py RUST_TIMING_OUTPUT_FILE   (see compare.sh, which produces it)
+Usage: compare.py RUST_TIMING_OUTPUT_FILE [SNAPSHOT_MATRIX_FILE]   (see compare.sh)
 The problem data come from the same 32-bit LCG as benches/problems.rs, so both sides solve
 identical problems; the cross-check columns show that they agree.
 """
@@ -76,6 +76,17 @@ def main():
     t = median_time(5, lambda: kmedoids.fasterpam(d, init.copy(), max_iter=100, n_cpu=1))
     rows.append(("fasterpam_1625_k812", "python-kmedoids (Rust core, 1 thread)", t,
                  f"loss={res.loss:.6f} swaps={res.n_swap} iterations={res.n_iter}"))
+
+    if len(sys.argv) > 2:
+        # The matrix of 1625 exploration snapshots, as the Rust side computed it (f64, n × n).
+        raw = np.fromfile(sys.argv[2], dtype="<f8")
+        n = int(round(len(raw) ** 0.5))
+        ds = raw.reshape(n, n)
+        init = np.arange(0, n - 1, 2)
+        res = kmedoids.fasterpam(ds, init.copy(), max_iter=100, n_cpu=1)
+        t = median_time(5, lambda: kmedoids.fasterpam(ds, init.copy(), max_iter=100, n_cpu=1))
+        rows.append(("fasterpam_snapshots_1625_k812", "python-kmedoids (Rust core, 1 thread)", t,
+                     f"loss={res.loss:.6f} swaps={res.n_swap} iterations={res.n_iter}"))
 
     p, r = vi_problem(1000)
 

@@ -9,7 +9,8 @@ if [ ! -x "$venv/bin/python" ]; then
     "$venv/bin/pip" install --quiet kmedoids pymdptoolbox numpy scipy
 fi
 out="$(mktemp)"
-trap 'rm -f "$out"' EXIT
-(cd "$here/.." && cargo run --quiet --release -p rfloc-snapshot --example snapshot_timing) > "$out"
+matrix="$(mktemp)"
+trap 'rm -f "$out" "$matrix"' EXIT
+(cd "$here/.." && cargo run --quiet --release -p rfloc-snapshot --example snapshot_timing -- "$matrix") > "$out"
 echo "Rust timings:"; cat "$out"; echo
-"$venv/bin/python" "$here/compare.py" "$out"
+"$venv/bin/python" "$here/compare.py" "$out" "$matrix"

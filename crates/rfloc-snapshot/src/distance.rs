@@ -336,26 +336,67 @@ impl DissimilarityMatrix {
             n,
             data: vec![0.0; n * n],
         };
-        let mut shared = vec![Shared::default(); n];
-        for (i, a) in indexed.iter().enumerate() {
-            for (t, ra) in a.pairs() {
-                let Some(p) = post.get(t as usize) else {
-                    continue;
-                };
-                for &(j, rb) in p {
-                    if j as usize >= i {
-                        break;
+        let positive = indexed.iter().all(|s| s.rss.iter().all(|r| *r > 0.0));
+        if distance == SnapshotDistance::RssL1 && positive {
+            // With positive RSS, Σ_{A∪B} |a − b| = ΣA + ΣB − 2 Σ_{A∩B} min(a, b): one sum per
+            // pair.
+            let totals: Vec<f64> = indexed.iter().map(|s| s.total).collect();
+            let mut common = vec![0.0_f64; n];
+            for (i, a) in indexed.iter().enumerate() {
+                for (t, ra) in a.pairs() {
+                    let Some(p) = post.get(t as usize) else {
+                        continue;
+                    };
+                    for &(j, rb) in p {
+                        if j as usize >= i {
+                            break;
+                        }
+                        if let Some(c) = common.get_mut(j as usize) {
+                            *c += ra.min(rb);
+                        }
                     }
-                    if let Some(s) = shared.get_mut(j as usize) {
-                        s.add(ra, rb);
+                }
+                let ta = a.total;
+                if let (Some(row), Some(acc), Some(tb)) = (
+                    m.data.get_mut(i * n..i * n + i),
+                    common.get_mut(..i),
+                    totals.get(..i),
+                ) {
+                    for ((x, c), &tb) in row.iter_mut().zip(acc.iter_mut()).zip(tb) {
+                        let denom = ta + tb;
+                        let d = if denom > 0.0 {
+                            1.0 - 2.0 * *c / denom
+                        } else {
+                            0.0
+                        };
+                        *x = d.clamp(0.0, 1.0);
+                        *c = 0.0;
                     }
                 }
             }
-            if let (Some(row), Some(acc)) = (m.data.get_mut(i * n..i * n + i), shared.get_mut(..i))
-            {
-                for ((x, s), b) in row.iter_mut().zip(acc.iter_mut()).zip(&indexed) {
-                    *x = distance.with_shared(a, b, *s);
-                    *s = Shared::default();
+        } else {
+            let mut shared = vec![Shared::default(); n];
+            for (i, a) in indexed.iter().enumerate() {
+                for (t, ra) in a.pairs() {
+                    let Some(p) = post.get(t as usize) else {
+                        continue;
+                    };
+                    for &(j, rb) in p {
+                        if j as usize >= i {
+                            break;
+                        }
+                        if let Some(s) = shared.get_mut(j as usize) {
+                            s.add(ra, rb);
+                        }
+                    }
+                }
+                if let (Some(row), Some(acc)) =
+                    (m.data.get_mut(i * n..i * n + i), shared.get_mut(..i))
+                {
+                    for ((x, s), b) in row.iter_mut().zip(acc.iter_mut()).zip(&indexed) {
+                        *x = distance.with_shared(a, b, *s);
+                        *s = Shared::default();
+                    }
                 }
             }
         }

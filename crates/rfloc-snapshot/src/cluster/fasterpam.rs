@@ -78,9 +78,9 @@ pub fn init_kmeanspp(d: &DissimilarityMatrix, k: usize, seed: u64) -> Vec<usize>
 
 /// Nearest and second-nearest medoid of every object, as parallel arrays.
 struct Caches {
-    near_slot: Vec<usize>,
+    near_slot: Vec<u32>,
     near: Vec<f64>,
-    sec_slot: Vec<usize>,
+    sec_slot: Vec<u32>,
     sec: Vec<f64>,
 }
 
@@ -95,7 +95,7 @@ impl Caches {
         };
         for (slot, &m) in medoids.iter().enumerate() {
             for (o, &dist) in d.row(m).iter().enumerate() {
-                c.offer(o, slot, dist);
+                c.offer(o, slot as u32, dist);
             }
         }
         c
@@ -103,7 +103,7 @@ impl Caches {
 
     /// Takes medoid `slot` at distance `dist` into object `o`'s nearest/second ranking.
     #[inline]
-    fn offer(&mut self, o: usize, slot: usize, dist: f64) {
+    fn offer(&mut self, o: usize, slot: u32, dist: f64) {
         let (Some(ns), Some(nd), Some(ss), Some(sd)) = (
             self.near_slot.get_mut(o),
             self.near.get_mut(o),
@@ -127,7 +127,7 @@ impl Caches {
     fn removal_loss(&self, loss: &mut [f64]) {
         loss.iter_mut().for_each(|l| *l = 0.0);
         for ((&slot, &n), &s) in self.near_slot.iter().zip(&self.near).zip(&self.sec) {
-            if let Some(l) = loss.get_mut(slot) {
+            if let Some(l) = loss.get_mut(slot as usize) {
                 *l += s - n;
             }
         }
@@ -139,11 +139,12 @@ fn second_excluding(
     d: &DissimilarityMatrix,
     medoids: &[usize],
     o: usize,
-    exclude: usize,
-) -> (usize, f64) {
+    exclude: u32,
+) -> (u32, f64) {
     let row = d.row(o);
     let mut best = (exclude, f64::INFINITY);
     for (slot, &m) in medoids.iter().enumerate() {
+        let slot = slot as u32;
         if slot == exclude {
             continue;
         }
@@ -164,11 +165,11 @@ fn swap_gains(row: &[f64], c: &Caches, loss_rm: &[f64], delta: &mut [f64]) -> f6
     for (((&doj, &dn), &ds), &ns) in row.iter().zip(&c.near).zip(&c.sec).zip(&c.near_slot) {
         if doj < dn {
             acc += doj - dn;
-            if let Some(x) = delta.get_mut(ns) {
+            if let Some(x) = delta.get_mut(ns as usize) {
                 *x += dn - ds;
             }
         } else if doj < ds {
-            if let Some(x) = delta.get_mut(ns) {
+            if let Some(x) = delta.get_mut(ns as usize) {
                 *x += doj - ds;
             }
         }
@@ -248,7 +249,7 @@ pub fn fasterpam(d: &DissimilarityMatrix, init: Vec<usize>, max_iter: usize) -> 
         }
     }
     let loss = caches.near.iter().sum();
-    let assignment = caches.near_slot;
+    let assignment = caches.near_slot.iter().map(|&s| s as usize).collect();
     Clustering {
         medoids,
         assignment,
@@ -278,6 +279,7 @@ fn apply_swap(
         *f = true;
     }
     let row = d.row(xc);
+    let slot = slot as u32;
     for (o, &dn) in row.iter().enumerate() {
         let (Some(ns), Some(nd), Some(ss), Some(sd)) = (
             c.near_slot.get(o).copied(),
