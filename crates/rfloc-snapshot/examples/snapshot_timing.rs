@@ -1,7 +1,8 @@
 //! Prints timings of the benchmark problems in a form `benches/compare.py` parses:
-//! `name seconds detail`. Run with `cargo run --release --example snapshot_timing [MATRIX]`;
-//! with `MATRIX`, the dissimilarity matrix of the 1625 exploration snapshots is written there
-//! (n × n little-endian f64) for the Python side to cluster the same matrix.
+//! `name seconds detail`. Run with
+//! `cargo run --release --example snapshot_timing [EUCLIDEAN_MATRIX SNAPSHOT_MATRIX]`; with the
+//! paths, both dissimilarity matrices are written there (n × n little-endian f32, as the crate
+//! stores them) so that the Python side clusters exactly the same matrices.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 #[path = "../benches/problems.rs"]
@@ -26,8 +27,20 @@ fn median_secs(reps: usize, mut f: impl FnMut()) -> f64 {
     t[t.len() / 2]
 }
 
+/// Writes the matrix as n × n little-endian f32.
+fn write_matrix(d: &DissimilarityMatrix, path: &str) {
+    let bytes: Vec<u8> = (0..d.len())
+        .flat_map(|i| d.row(i).iter().flat_map(|x| x.to_le_bytes()))
+        .collect();
+    std::fs::write(path, bytes).unwrap();
+}
+
 fn main() {
+    let paths: Vec<String> = std::env::args().skip(1).collect();
     let d = problems::clustering_problem(1625);
+    if let Some(path) = paths.first() {
+        write_matrix(&d, path);
+    }
     let init = problems::initial_medoids(1625);
     let c = fasterpam::fasterpam(&d, init.clone(), 100);
     let t = median_secs(5, || {
@@ -47,11 +60,8 @@ fn main() {
     });
     let d = DissimilarityMatrix::from_snapshots(&snaps, SnapshotDistance::RssL1);
     println!("snapshot_matrix_1625 {t:.6} n={}", d.len());
-    if let Some(path) = std::env::args().nth(1) {
-        let bytes: Vec<u8> = (0..d.len())
-            .flat_map(|i| d.row(i).iter().flat_map(|x| x.to_le_bytes()))
-            .collect();
-        std::fs::write(&path, bytes).unwrap();
+    if let Some(path) = paths.get(1) {
+        write_matrix(&d, path);
     }
     let c = fasterpam::fasterpam(&d, init.clone(), 100);
     let t = median_secs(5, || {
