@@ -26,6 +26,7 @@ pub use value_iteration::{q_values, value_iteration, ValueIterationConfig, Value
 
 pub mod database;
 pub mod filter;
+pub mod joint;
 pub mod lattice;
 pub mod navigate;
 mod readtable;
@@ -39,6 +40,7 @@ pub use database::{
     LearnConfig, LearnedState, Localisation, Observation, SnapshotDatabase, FORMAT_VERSION,
 };
 pub use filter::{FilterConfig, StateFilter};
+pub use joint::{learn_jointly, JointConfig, JointReport};
 pub use lattice::{ActionModel, LatticeConfig, LatticePlan};
 pub use navigate::{NavCommand, NavReason, Navigator, NavigatorConfig, Plan, PlanConfig};
 pub use survey::{Survey, SurveySample, SURVEY_FORMAT_VERSION};

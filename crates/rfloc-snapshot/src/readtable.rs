@@ -138,10 +138,10 @@ pub(crate) struct ReadTable {
     pub(crate) floor: f64,
     /// Reach of the model (in view: `d ≤ reach` and in front), metres.
     pub(crate) reach: f64,
-    /// Row-major `[iy][ix]`: (mean RSS, miss term).
-    cells: Box<[[f32; 2]; TABLE_N * TABLE_N]>,
+    /// Row-major `[iy][ix]`: (mean RSS, miss term). Shared: maps learned in rounds reuse it.
+    cells: std::sync::Arc<[[f32; 2]; TABLE_N * TABLE_N]>,
     /// Miss term by mean RSS, `MISS_STEP` apart, for the field.
-    miss: Vec<f64>,
+    miss: std::sync::Arc<[f64]>,
 }
 
 impl std::fmt::Debug for ReadTable {
@@ -211,7 +211,7 @@ impl ReadTable {
             model: model.clone(),
             floor,
             reach,
-            cells,
+            cells: cells.into(),
             miss,
         }
     }
@@ -243,13 +243,15 @@ impl ReadTable {
     /// Adds one read tag's terms to every pose of `poses`: at tag position `(tx, ty)` (same
     /// origin as the poses) read with RSS `r`, `acc += max(−½((r − m)/σ)², −floor) − v` (its
     /// Gaussian term replaces the miss term `v` the field counted) and `terms += 1` unless the
-    /// field counted it already (in view). `cells` is scratch of the poses' length.
+    /// field counted it already (in view). With `reads_only`, nothing is subtracted and every
+    /// read tag is a term (no field was added). `cells` is scratch of the poses' length.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn add_read(
         &self,
         (tx, ty, r): (f32, f32, f32),
         inv_sigma: f32,
         floor: f32,
+        reads_only: bool,
         poses: &PoseLanes,
         cells: &mut [u32],
         gathered: &mut [[f32; 2]],
@@ -271,6 +273,15 @@ impl ReadTable {
             *g = self.cells[i as usize & (TABLE_N * TABLE_N - 1)];
         }
         // Terms (vectorised).
+        if reads_only {
+            for ((a, k), g) in acc.iter_mut().zip(terms.iter_mut()).zip(gathered.iter()) {
+                let z = (r - g[0]) * inv_sigma;
+                let t = -0.5 * z * z;
+                *a += if t > -floor { t } else { -floor };
+                *k += 1.0;
+            }
+            return;
+        }
         for ((a, k), g) in acc.iter_mut().zip(terms.iter_mut()).zip(gathered.iter()) {
             let z = (r - g[0]) * inv_sigma;
             let t = -0.5 * z * z;

@@ -272,13 +272,18 @@ impl TagMap {
     /// Rebuilds the lookup tables (after deserialising, or after changing `tags`, `model` or
     /// `config.floor`). The miss field's tiles are computed lazily, on first use.
     pub fn rebuild_index(&mut self) {
+        let table = ReadTable::new(&self.model, self.config.floor);
+        self.rebuild_with(table);
+    }
+
+    /// [`TagMap::rebuild_index`] with a table already built for this model and floor.
+    fn rebuild_with(&mut self, table: ReadTable) {
         self.index = self
             .tags
             .iter()
             .enumerate()
             .map(|(i, t)| (t.id.clone(), i))
             .collect();
-        let table = ReadTable::new(&self.model, self.config.floor);
         let positions: Vec<(f64, f64)> = self.tags.iter().map(|t| (t.x, t.y)).collect();
         self.field = Some(Arc::new(MissField::new(table, &positions)));
     }
@@ -393,6 +398,21 @@ impl TagMap {
         (ll / self.config.temperature.max(1e-9), terms)
     }
 
+    /// [`TagMap::log_likelihood_exact`] of the read tags only.
+    #[must_use]
+    pub fn read_log_likelihood_exact(&self, pose: &Pose2, obs: &MapObservation) -> (f64, f64) {
+        let antenna = self.model.antenna(pose);
+        let sigma = self.read_sigma();
+        let (mut ll, mut terms) = (0.0, 0.0);
+        for &(i, r) in &obs.reads {
+            let Some(t) = self.tags.get(i) else { continue };
+            let z = (r - self.model.mean_rss_from(&antenna, t.x, t.y)) / sigma;
+            ll += (-0.5 * z * z).max(-self.config.floor);
+            terms += 1.0;
+        }
+        (ll / self.config.temperature.max(1e-9), terms)
+    }
+
     /// Log-likelihoods (divided by the temperature) and term counts of many robot poses for
     /// one observation, appended to `out` after clearing it. Uses the tabulated model and the
     /// miss field: per pose, one field look-up plus one table look-up per read tag. Falls back
@@ -405,13 +425,43 @@ impl TagMap {
         scratch: &mut LikelihoodScratch,
         out: &mut Vec<(f64, f64)>,
     ) {
+        self.score(poses, obs, scratch, out, false);
+    }
+
+    /// As [`TagMap::log_likelihoods`] with the read tags' terms only (no miss terms): what the
+    /// joint learning of map and trajectory uses to place a pose, where it does not depend on
+    /// the miss field of a map that changes every round.
+    pub fn read_log_likelihoods(
+        &self,
+        poses: &[Pose2],
+        obs: &MapObservation,
+        scratch: &mut LikelihoodScratch,
+        out: &mut Vec<(f64, f64)>,
+    ) {
+        self.score(poses, obs, scratch, out, true);
+    }
+
+    fn score(
+        &self,
+        poses: &[Pose2],
+        obs: &MapObservation,
+        scratch: &mut LikelihoodScratch,
+        out: &mut Vec<(f64, f64)>,
+        reads_only: bool,
+    ) {
         out.clear();
         let Some(field) = self
             .field
             .as_ref()
             .filter(|f| f.table().is_for(&self.model, self.config.floor))
         else {
-            out.extend(poses.iter().map(|p| self.log_likelihood_exact(p, obs)));
+            out.extend(poses.iter().map(|p| {
+                if reads_only {
+                    self.read_log_likelihood_exact(p, obs)
+                } else {
+                    self.log_likelihood_exact(p, obs)
+                }
+            }));
             return;
         };
         let table = field.table();
@@ -460,7 +510,11 @@ impl TagMap {
                 let (s, c) = sincos_f32(p.theta);
                 let ax = p.x + f64::from(c) * off;
                 let ay = p.y + f64::from(s) * off;
-                let (sum, count) = field.sample(ax, ay, p.theta);
+                let (sum, count) = if reads_only {
+                    (0.0, 0.0)
+                } else {
+                    field.sample(ax, ay, p.theta)
+                };
                 #[allow(clippy::cast_possible_truncation)]
                 {
                     *px = (ax - ox) as f32;
@@ -472,7 +526,9 @@ impl TagMap {
                 *k = count;
             }
             for &tag in &tags {
-                table.add_read(tag, inv_sigma, floor, lanes, cells, gathered, acc, terms);
+                table.add_read(
+                    tag, inv_sigma, floor, reads_only, lanes, cells, gathered, acc, terms,
+                );
             }
             out.extend(
                 acc.iter()
@@ -495,7 +551,7 @@ pub(crate) struct Mapper<'a> {
 }
 
 /// The antenna poses of one mapping pass, bucketed.
-struct PoseIndex {
+pub(crate) struct PoseIndex {
     antennas: Vec<Pose2>,
     grid: HashMap<(i64, i64), Vec<usize>>,
     cell: f64,
@@ -540,17 +596,72 @@ impl<'a> Mapper<'a> {
     /// Places every tag for the robot poses `poses` (one per snapshot); with `previous` (the
     /// positions of the last pass, by tag), tags are searched around them only.
     pub(crate) fn map(&self, poses: &[Pose2], previous: Option<&[Option<(f64, f64)>]>) -> TagMap {
+        let index = self.index(poses);
+        let located: Vec<Option<MappedTag>> = (0..self.ids.len())
+            .map(|k| {
+                let start = previous.and_then(|p| p.get(k).copied().flatten());
+                self.locate_tag(k, &index, start)
+            })
+            .collect();
+        self.build(&located)
+    }
+
+    /// The model's reach, m.
+    pub(crate) fn reach(&self) -> f64 {
+        self.table.reach
+    }
+
+    /// Number of tags read often enough over the whole survey.
+    pub(crate) fn tag_count(&self) -> usize {
+        self.ids.len()
+    }
+
+    /// Snapshots (indices) that read tag `k`, in order.
+    pub(crate) fn reads_of(&self, k: usize) -> &[(usize, f64)] {
+        self.reads.get(k).map_or(&[], Vec::as_slice)
+    }
+
+    /// The antenna poses of `poses` (the first `poses.len()` snapshots), bucketed.
+    pub(crate) fn index(&self, poses: &[Pose2]) -> PoseIndex {
         let antennas: Vec<Pose2> = poses.iter().map(|p| self.model.antenna(p)).collect();
-        let reach = self.table.reach;
-        let index = PoseIndex::new(antennas, reach.max(0.5));
-        let mut tags = Vec::with_capacity(self.ids.len());
-        for (k, (id, seen)) in self.ids.iter().zip(&self.reads).enumerate() {
-            let start = previous.and_then(|p| p.get(k).copied().flatten());
-            if let Some(t) = self.locate(id, seen, &index, start) {
-                tags.push(t);
-            }
+        PoseIndex::new(antennas, self.table.reach.max(0.5))
+    }
+
+    /// Places tag `k` from the snapshots `index` covers (its reads among them must reach
+    /// `min_reads`), around `start` when given.
+    pub(crate) fn locate_tag(
+        &self,
+        k: usize,
+        index: &PoseIndex,
+        start: Option<(f64, f64)>,
+    ) -> Option<MappedTag> {
+        let id = self.ids.get(k)?;
+        let all = self.reads.get(k)?;
+        let seen = all
+            .get(..all.partition_point(|(i, _)| *i < index.antennas.len()))
+            .unwrap_or(&[]);
+        if seen.len() < self.config.min_reads.max(1) {
+            return None;
         }
-        TagMap::from_tags(self.model.clone(), self.config, tags)
+        self.locate(id, seen, index, start)
+    }
+
+    /// The map of the located tags.
+    pub(crate) fn build(&self, located: &[Option<MappedTag>]) -> TagMap {
+        self.build_from(located.iter().flatten().cloned())
+    }
+
+    /// The map of these tags (sharing the mapper's table).
+    pub(crate) fn build_from(&self, tags: impl Iterator<Item = MappedTag>) -> TagMap {
+        let mut map = TagMap {
+            model: self.model.clone(),
+            config: self.config,
+            tags: tags.collect(),
+            index: BTreeMap::new(),
+            field: None,
+        };
+        map.rebuild_with(self.table.clone());
+        map
     }
 
     /// Log-likelihood of a tag at `(x, y)` given its sightings (reads and misses).
