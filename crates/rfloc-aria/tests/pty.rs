@@ -297,7 +297,11 @@ async fn reconnects_after_the_link_drops() {
         .unwrap();
     let mut rx = client.odometry();
     client.set_velocity(0.3, 0.0).await.unwrap();
-    let before = wait_odometry(&mut rx, "moving", |o| o.pose.x > 0.2).await;
+    wait_odometry(&mut rx, "moving", |o| o.pose.x > 0.2).await;
+    // Stop before pulling the cable: motion between the last SIP the client read and the pull
+    // would be a race of this test, not a property of the client.
+    client.set_velocity(0.0, 0.0).await.unwrap();
+    let before = wait_still(&mut rx).await;
     // Pull the cable: the robot end of the pty goes away.
     let task = serving.lock().unwrap().take().unwrap();
     task.abort();

@@ -99,6 +99,25 @@ pub async fn run_with_pipeline(
     );
     let time_scale = sim.as_ref().map_or(1.0, |s| s.time_scale());
 
+    // Foxglove live view.
+    let mut live_view = None;
+    let viz = match &cfg.foxglove.listen {
+        Some(addr) => {
+            let addr: std::net::SocketAddr = addr
+                .parse()
+                .with_context(|| format!("foxglove.listen {addr:?}"))?;
+            let hub = rfloc_viz::Viz::new();
+            let live = hub
+                .serve(addr, None)
+                .await
+                .with_context(|| format!("serving the Foxglove live view on {addr}"))?;
+            tracing::info!(url = %live.url(), "Foxglove live view");
+            live_view = Some(live);
+            Some(crate::viz::VizOut::new(hub, origin))
+        }
+        None => None,
+    };
+
     // Pose stream.
     let token = match &cfg.pose.token_file {
         Some(p) => {
@@ -195,11 +214,31 @@ pub async fn run_with_pipeline(
             events: ev_tx.clone(),
             base,
             estimator: &cfg.estimator,
-            pipeline_drives_base: pipeline::drives_base(&cfg.estimator),
+            pipeline_drives_base: pipeline::drives_base(&cfg.estimator) || cfg.fleet.is_some(),
             stop: stop.clone(),
         });
     }
     drop(ev_tx);
+
+    // The fleet link (`[fleet]`): a task of its own, fed by the estimator thread and the router.
+    let fleet = crate::fleet::start(
+        &cfg,
+        pipeline.drives_to_goals(),
+        routes
+            .iter()
+            .find(|r| {
+                r.driver
+                    .handles(&pipeline::Request::Velocity { v: 0.0, w: 0.0 })
+            })
+            .map(|r| r.queue.clone()),
+        Arc::clone(&resources),
+        stop.clone(),
+    )
+    .inspect_err(|_| stop.cancel())?;
+    let (fleet_link, fleet_devices, fleet_task) = match fleet {
+        Some(f) => (Some(f.link), Some(f.devices), Some(f.task)),
+        None => (None, None, None),
+    };
 
     // The estimator thread.
     // A recording that cannot be written (a full disk) does not stop the robot.
@@ -231,6 +270,8 @@ pub async fn run_with_pipeline(
             order_log,
             scorer: sim.as_ref().and_then(|s| s.scorer()),
             ack: None,
+            viz: viz.clone(),
+            fleet: fleet_link,
         },
         print_observations: false,
     };
@@ -256,6 +297,8 @@ pub async fn run_with_pipeline(
         last_consumed: (0, tokio::time::Instant::now()),
         health,
         max_down: crate::time::seconds(cfg.supervision.max_down_s),
+        viz: viz.clone(),
+        fleet: fleet_devices,
     };
     router.run(ev_rx, &stop, deadline).await;
 
@@ -293,11 +336,22 @@ pub async fn run_with_pipeline(
         Ok(_) => tracing::error!("the estimator thread ended abnormally"),
         Err(_) => tracing::error!("the estimator thread did not stop within 5 s"),
     }
+    if let Some(task) = fleet_task {
+        if tokio::time::timeout(Duration::from_secs(5), task)
+            .await
+            .is_err()
+        {
+            tracing::warn!("the fleet link did not stop within 5 s");
+        }
+    }
     if let Some(sim) = sim {
         sim.shutdown().await;
     }
     for s in servers {
         let _ = tokio::time::timeout(Duration::from_secs(1), s).await;
+    }
+    if let Some(live) = live_view {
+        live.stop().await;
     }
     tracing::info!(slow_clients_dropped = hub.dropped_clients(), "stopped");
     Ok(())
@@ -318,6 +372,10 @@ struct Router {
     health: Arc<Health>,
     /// A device down longer than this stops the watchdog.
     max_down: Duration,
+    /// Foxglove channels, for device status.
+    viz: Option<crate::viz::VizOut>,
+    /// DEVICE states for the fleet link's `state.errors`.
+    fleet: Option<crate::fleet::DeviceTap>,
 }
 
 impl Router {
@@ -341,6 +399,9 @@ impl Router {
                 _ = tick.tick() => {
                     for (name, driver, limit) in self.stale.check() {
                         tracing::warn!(device = %name, "device silent");
+                        if let Some(f) = &self.fleet {
+                            f.note(&name, driver, DeviceState::Stale, &format!("silent for more than {limit:.1} s"));
+                        }
                         self.hub.publish_device(&name, message::device_json(&name, driver, DeviceState::Stale, &format!("silent for more than {limit:.1} s"), SystemTime::now()));
                     }
                     if self.healthy(watchdog) {
@@ -384,12 +445,21 @@ impl Router {
             if *state == DeviceState::Connected {
                 self.health.up(device);
             }
+            if let Some(v) = &self.viz {
+                v.status(device, *state, detail);
+            }
+            if let Some(f) = &self.fleet {
+                f.note(device, driver, *state, detail);
+            }
             return;
         }
         self.health.up(event.device());
         if self.stale.seen(event.device()) {
             let name = event.device().to_string();
             let driver = self.stale.driver(&name);
+            if let Some(f) = &self.fleet {
+                f.note(&name, driver, DeviceState::Connected, "data again");
+            }
             self.hub.publish_device(
                 &name,
                 message::device_json(

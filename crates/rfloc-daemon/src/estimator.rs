@@ -61,6 +61,10 @@ pub struct Outputs {
     pub scorer: Option<crate::simulation::Scorer>,
     /// Told after each input is consumed (replay steps in lock with the thread).
     pub ack: Option<mpsc::UnboundedSender<u64>>,
+    /// Foxglove channels (a live view, an MCAP recording).
+    pub viz: Option<crate::viz::VizOut>,
+    /// The fleet link (`[fleet]`): estimates out, goals and initialisations in.
+    pub fleet: Option<crate::fleet::EstimatorLink>,
 }
 
 /// Liveness of the thread, for the watchdog.
@@ -141,6 +145,8 @@ pub fn spawn(worker: Worker, capacity: usize) -> std::io::Result<EstimatorThread
 impl Worker {
     fn run(mut self, rx: &Receiver<Input>, progress: &Progress) {
         let mut last_seen: HashMap<String, f64> = HashMap::new();
+        // The robot's latest odometry pose, for the odometry frames of POSE lines.
+        let mut odom: Option<rfloc_pose::Pose2> = None;
         let mut last_t = 0.0f64;
         let mut non_finite = 0u64;
         while let Ok(input) = rx.recv() {
@@ -161,13 +167,25 @@ impl Worker {
             if !end {
                 last_seen.insert(event.device().to_string(), t);
             }
+            if let DeviceEvent::Odometry { pose, .. } = &event {
+                odom = Some(*pose);
+            }
+            if let (Some(v), false) = (&self.outputs.viz, end) {
+                v.observation(&event);
+            }
             if self.print_observations {
                 self.emit(&event.to_json());
             }
             if let Some(p) = self.pipeline.as_mut() {
+                if let Some(f) = self.outputs.fleet.as_mut() {
+                    f.before_event(p.as_mut(), &event);
+                }
                 let estimate = p.handle(&event);
                 let requests = p.take_requests();
                 let targets = p.take_targets();
+                if let Some(v) = self.outputs.viz.as_mut() {
+                    v.scene(t, || p.scene());
+                }
                 for request in requests {
                     route(&self.routes, request);
                 }
@@ -178,7 +196,13 @@ impl Worker {
                     if let Some(score) = self.outputs.scorer.as_mut() {
                         score(&est);
                     }
-                    match message::pose_json(&est, &self.format) {
+                    if let Some(v) = &self.outputs.viz {
+                        v.pose(&est, odom.as_ref());
+                    }
+                    if let Some(f) = self.outputs.fleet.as_mut() {
+                        f.estimate(&est);
+                    }
+                    match message::pose_json_with_odometry(&est, odom.as_ref(), &self.format) {
                         Ok(line) => {
                             if let Some(hub) = &self.outputs.hub {
                                 hub.publish_pose(line.clone());
@@ -194,6 +218,9 @@ impl Worker {
                     }
                 }
                 for target in targets {
+                    if let Some(v) = &self.outputs.viz {
+                        v.target(&target);
+                    }
                     match message::target_json(&target, &self.format) {
                         Ok(line) => {
                             if let Some(hub) = &self.outputs.hub {

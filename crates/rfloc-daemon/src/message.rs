@@ -15,8 +15,10 @@ use crate::time::TimeOrigin;
 
 /// Protocol version of the pose stream.
 pub const PROTO_MAJOR: u32 = 1;
-/// Minor version: 1 added TARGET; 2 made `stamp` the measurement time in Unix seconds.
-pub const PROTO_MINOR: u32 = 2;
+/// Minor version: 1 added TARGET; 2 made `stamp` the measurement time in Unix seconds; 3 added
+/// the odometry frames (`odom`, `map_odom`), `null` positions of `no_fix` poses, the requests
+/// (`?WATCH`, `?DEVICES`, `?POLL`) and DEVICE `counters`.
+pub const PROTO_MINOR: u32 = 3;
 
 /// One line of the pose stream.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -77,13 +79,22 @@ pub struct Pose {
     pub child_frame_id: String,
     /// `fix`, `degraded` or `no_fix`.
     pub mode: String,
-    pub x: f64,
-    pub y: f64,
-    pub yaw: f64,
-    /// x, y, z, w.
-    pub quaternion: [f64; 4],
-    /// 6×6 row-major, ROS order (x y z roll pitch yaw).
+    /// Position and heading in `frame_id`; `null` when `mode` is `no_fix` (there is none).
+    pub x: Option<f64>,
+    pub y: Option<f64>,
+    pub yaw: Option<f64>,
+    /// x, y, z, w; `null` with the position.
+    pub quaternion: Option<[f64; 4]>,
+    /// 6×6 row-major, ROS order (x y z roll pitch yaw). Never all zero unless the pose is known
+    /// exactly: a `degraded` pose carries at least 1 cm and 0.01 rad standard deviations.
     pub cov: Vec<f64>,
+    /// The robot in the odometry frame (`odom → base_link`: x, y, yaw), when the robot has
+    /// odometry.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub odom: Option<[f64; 3]>,
+    /// The correction `map → odom` (x, y, yaw) that puts the odometry pose at this pose.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub map_odom: Option<[f64; 3]>,
     pub source: String,
 }
 
@@ -154,8 +165,20 @@ fn significant(v: f64, digits: usize) -> f64 {
     format!("{v:.d$e}").parse().unwrap_or(v)
 }
 
-/// The POSE message of an estimate.
+/// Smallest variance of a degraded pose's x, y and yaw: (1 cm)², (0.01 rad)².
+const DEGRADED_VARIANCE_FLOOR: f64 = 1e-4;
+
+/// The POSE message of an estimate; `odom` is the robot's latest odometry pose, when it has one.
 pub fn pose(est: &PoseEstimate, fmt: &PoseFormat) -> Result<Pose, NonFinite> {
+    pose_with_odometry(est, None, fmt)
+}
+
+/// [`pose`] with the odometry frames.
+pub fn pose_with_odometry(
+    est: &PoseEstimate,
+    odom: Option<&rfloc_pose::Pose2>,
+    fmt: &PoseFormat,
+) -> Result<Pose, NonFinite> {
     let p = &est.pose;
     if !p.x.is_finite() || !p.y.is_finite() {
         return Err(NonFinite("position"));
@@ -166,24 +189,44 @@ pub fn pose(est: &PoseEstimate, fmt: &PoseFormat) -> Result<Pose, NonFinite> {
     if !est.time.is_finite() {
         return Err(NonFinite("time"));
     }
-    let cov = est.ros_covariance();
+    let mut cov = est.ros_covariance();
     if cov.iter().any(|v| !v.is_finite()) {
         return Err(NonFinite("covariance"));
+    }
+    if est.mode == EstimateMode::Degraded {
+        // A degraded pose is never reported as certain.
+        for i in [0, 7, 35] {
+            if let Some(v) = cov.get_mut(i) {
+                *v = v.max(DEGRADED_VARIANCE_FLOOR);
+            }
+        }
     }
     let pm = fmt.precision.min(12);
     let pr = pm + 2;
     let q = est.quaternion();
+    let known = est.mode != EstimateMode::NoFix;
+    let frame = |p: &rfloc_pose::Pose2| [fixed(p.x, pm), fixed(p.y, pm), fixed(p.theta, pr)];
+    let odom = odom.filter(|o| o.is_finite());
+    let map_odom = odom
+        .filter(|_| known)
+        .map(|o| {
+            est.pose
+                .compose(&rfloc_pose::Pose2::default().relative_to(o))
+        })
+        .filter(rfloc_pose::Pose2::is_finite);
     Ok(Pose {
         time: fmt.origin.iso8601(est.time),
         stamp: fixed(fmt.origin.stamp(est.time), 6),
         frame_id: fmt.frame_id.clone(),
         child_frame_id: fmt.child_frame_id.clone(),
         mode: mode_name(est.mode).into(),
-        x: fixed(p.x, pm),
-        y: fixed(p.y, pm),
-        yaw: fixed(p.theta, pr),
-        quaternion: q.map(|v| fixed(v, pr)),
+        x: known.then(|| fixed(p.x, pm)),
+        y: known.then(|| fixed(p.y, pm)),
+        yaw: known.then(|| fixed(p.theta, pr)),
+        quaternion: known.then(|| q.map(|v| fixed(v, pr))),
         cov: cov.iter().map(|v| significant(*v, 4)).collect(),
+        odom: odom.map(frame),
+        map_odom: map_odom.as_ref().map(frame),
         source: est.source.to_string(),
     })
 }
@@ -219,6 +262,15 @@ pub fn target(t: &TargetEstimate, fmt: &PoseFormat) -> Result<Target, NonFinite>
 /// One POSE line.
 pub fn pose_json(est: &PoseEstimate, fmt: &PoseFormat) -> Result<String, NonFinite> {
     pose(est, fmt).map(|p| Message::Pose(p).to_line())
+}
+
+/// One POSE line with the odometry frames.
+pub fn pose_json_with_odometry(
+    est: &PoseEstimate,
+    odom: Option<&rfloc_pose::Pose2>,
+    fmt: &PoseFormat,
+) -> Result<String, NonFinite> {
+    pose_with_odometry(est, odom, fmt).map(|p| Message::Pose(p).to_line())
 }
 
 /// One TARGET line.
@@ -310,9 +362,46 @@ mod tests {
         assert!(line.contains("\"yaw\":1.5708,"), "{line}");
         assert_eq!(p.cov.len(), 36);
         assert_eq!((p.cov[0], p.cov[7], p.cov[35]), (0.01, 0.02, 0.003));
-        assert!((p.quaternion[3] - std::f64::consts::FRAC_1_SQRT_2).abs() < 1e-4);
+        assert!((p.quaternion.unwrap()[3] - std::f64::consts::FRAC_1_SQRT_2).abs() < 1e-4);
         let _ = Duration::ZERO;
         let _ = UNIX_EPOCH;
+    }
+
+    #[test]
+    fn no_fix_has_no_position_and_degraded_is_never_certain() {
+        let mut e = est();
+        e.mode = EstimateMode::NoFix;
+        let line = pose_json(&e, &fmt()).unwrap();
+        assert!(
+            line.contains("\"x\":null,\"y\":null,\"yaw\":null,\"quaternion\":null"),
+            "{line}"
+        );
+        let mut e = est();
+        e.mode = EstimateMode::Degraded;
+        e.covariance = nalgebra::Matrix3::zeros();
+        let Message::Pose(p) = Message::from_line(&pose_json(&e, &fmt()).unwrap()).unwrap() else {
+            panic!();
+        };
+        assert_eq!((p.cov[0], p.cov[7], p.cov[35]), (1e-4, 1e-4, 1e-4));
+    }
+
+    #[test]
+    fn the_odometry_frames_put_the_odometry_pose_at_the_estimate() {
+        let e = est(); // (1.23456, -2, 90°)
+        let odom = Pose2::new(1.0, 0.0, 0.0);
+        let Message::Pose(p) =
+            Message::from_line(&pose_json_with_odometry(&e, Some(&odom), &fmt()).unwrap()).unwrap()
+        else {
+            panic!();
+        };
+        assert_eq!(p.odom, Some([1.0, 0.0, 0.0]));
+        let [x, y, yaw] = p.map_odom.unwrap();
+        // map → odom ∘ odom → base_link = map → base_link.
+        let back = Pose2::new(x, y, yaw).compose(&odom);
+        assert!(
+            (back.x - 1.235).abs() < 2e-3 && (back.y + 2.0).abs() < 2e-3,
+            "{back:?}"
+        );
     }
 
     #[test]

@@ -40,6 +40,9 @@ pub struct ReplayOptions {
     pub config: Option<RobotConfig>,
     /// Print the observations instead of running a pipeline.
     pub observations: bool,
+    /// Also write an MCAP file: every device's raw link bytes, the decoded observations, the
+    /// poses, targets and the pipeline's scene.
+    pub mcap: Option<PathBuf>,
 }
 
 /// Replays `dir` on its own paused runtime and returns the lines it prints.
@@ -168,6 +171,9 @@ fn estimator_for(
     };
     match opts.pipeline.as_deref() {
         Some("snapshot") => Ok(Some(EstimatorConfig::Snapshot(snapshot_settings(dir)))),
+        Some("emitter") => anyhow::bail!(
+            "pipeline emitter has no default calibration (a1_dbm_at_1m): give the robot file with -c"
+        ),
         Some(name) => EstimatorConfig::named(name).map(Some).with_context(|| {
             format!(
                 "unknown pipeline {name:?} (one of {})",
@@ -401,6 +407,29 @@ pub async fn replay_lines(dir: &Path, opts: &ReplayOptions) -> anyhow::Result<Ve
         ),
         None => None,
     };
+    // MCAP: the raw bytes of every link first (they are in the captures), then what the run
+    // makes of them.
+    let recording = match &opts.mcap {
+        Some(path) => {
+            let hub = rfloc_viz::Viz::new();
+            let recording = hub
+                .record(path)
+                .with_context(|| format!("writing {}", path.display()))?;
+            let out = crate::viz::VizOut::new(hub, origin);
+            for rec in &caps {
+                for r in &rec.capture.records {
+                    match &r.kind {
+                        RecordKind::Rx(b) => out.link_bytes(r.t(), &rec.name, true, b),
+                        RecordKind::Tx(b) => out.link_bytes(r.t(), &rec.name, false, b),
+                        RecordKind::Event(_) => {}
+                    }
+                }
+            }
+            Some((recording, out))
+        }
+        None => None,
+    };
+    let viz = recording.as_ref().map(|(_, out)| out.clone());
     let (lines_tx, lines_rx) = std::sync::mpsc::channel();
     let (ack_tx, mut ack_rx) = mpsc::unbounded_channel();
     let worker = Worker {
@@ -424,6 +453,8 @@ pub async fn replay_lines(dir: &Path, opts: &ReplayOptions) -> anyhow::Result<Ve
             order_log: None,
             scorer: None,
             ack: Some(ack_tx),
+            viz: viz.clone(),
+            fleet: None,
         },
         print_observations: estimator_cfg.is_none(),
     };
@@ -457,9 +488,22 @@ pub async fn replay_lines(dir: &Path, opts: &ReplayOptions) -> anyhow::Result<Ve
 
     let mut fed = 0u64;
     let mut divergences = 0u64;
+    // Progress on a terminal (hidden when stderr is not one).
+    let progress = match &order {
+        Some(o) => indicatif::ProgressBar::new(o.len() as u64),
+        None => indicatif::ProgressBar::new_spinner(),
+    };
+    progress.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+    if let Ok(style) = indicatif::ProgressStyle::with_template(
+        "{prefix} {bar:30} {pos}/{len} observations {elapsed}",
+    ) {
+        progress.set_style(style);
+    }
+    progress.set_prefix("replay");
     match order {
         Some(order) => {
             for (device, ns) in order {
+                progress.inc(1);
                 if device == "daemon" {
                     break;
                 }
@@ -514,11 +558,13 @@ pub async fn replay_lines(dir: &Path, opts: &ReplayOptions) -> anyhow::Result<Ve
                 None
             };
             let Some(e) = event else { break };
+            progress.inc(1);
             feed(Input::Event(e))?;
             fed += 1;
             wait_ack(&mut ack_rx, fed).await;
         },
     }
+    progress.finish_and_clear();
     feed(Input::End)?;
     fed += 1;
     wait_ack(&mut ack_rx, fed).await;
@@ -529,6 +575,9 @@ pub async fn replay_lines(dir: &Path, opts: &ReplayOptions) -> anyhow::Result<Ve
     let _ = tokio::task::spawn_blocking(move || thread.handle.join()).await;
     if divergences > 0 {
         anyhow::bail!("replay diverged from the recording at {divergences} of {fed} inputs");
+    }
+    if let Some((recording, _)) = recording {
+        recording.finish().context("finishing the MCAP file")?;
     }
     let lines: Vec<String> = lines_rx.try_iter().collect();
     Ok(lines)

@@ -155,16 +155,28 @@ impl PoseHub {
     }
 
     /// Reads the client's `?AUTH={"token":"…"};` within the write time-out.
-    async fn authenticate<R: AsyncRead + Unpin>(&self, input: R) -> bool {
+    async fn authenticate<R: AsyncRead + Unpin>(&self, input: &mut R) -> bool {
         let Some(token) = &self.access.token else {
             return true;
         };
-        let mut line = String::new();
-        let mut reader = BufReader::new(input.take(4096));
-        let read = tokio::time::timeout(self.write_timeout, reader.read_line(&mut line)).await;
-        if !matches!(read, Ok(Ok(n)) if n > 0) {
+        // Byte by byte up to the newline, so that nothing after it is lost to a buffer.
+        let mut raw = Vec::new();
+        let read = tokio::time::timeout(self.write_timeout, async {
+            let mut byte = [0u8; 1];
+            while raw.len() < 4096 {
+                match input.read(&mut byte).await {
+                    Ok(1) if byte[0] == b'\n' => return true,
+                    Ok(1) => raw.push(byte[0]),
+                    _ => return false,
+                }
+            }
+            false
+        })
+        .await;
+        if !matches!(read, Ok(true)) {
             return false;
         }
+        let line = String::from_utf8_lossy(&raw).into_owned();
         let Some(body) = line
             .trim()
             .strip_prefix("?AUTH=")
@@ -242,9 +254,75 @@ impl PoseHub {
         out
     }
 
+    /// The answer to a client's request line (`?DEVICES;`, `?POLL;`, `?WATCH…;`), or an
+    /// `ERROR` line for anything else.
+    fn answer(&self, request: &str) -> Vec<Arc<str>> {
+        let request = request.trim().trim_end_matches(';');
+        let (latest_devices, pose, target) = self.latest.lock().map_or_else(
+            |_| (Vec::new(), None, None),
+            |l| {
+                (
+                    l.devices.values().cloned().collect::<Vec<_>>(),
+                    l.pose.clone(),
+                    l.target.clone(),
+                )
+            },
+        );
+        let parsed = |lines: &[Arc<str>]| -> Vec<serde_json::Value> {
+            lines
+                .iter()
+                .filter_map(|l| serde_json::from_str(l).ok())
+                .collect()
+        };
+        let line = |v: serde_json::Value| -> Arc<str> { v.to_string().into() };
+        let command = request.split_once('=').map_or(request, |(c, _)| c);
+        match command {
+            "?DEVICES" => vec![line(serde_json::json!({
+                "class": "DEVICES",
+                "devices": parsed(&latest_devices),
+            }))],
+            "?POLL" => {
+                let poses: Vec<Arc<str>> = pose.into_iter().collect();
+                let targets: Vec<Arc<str>> = target.into_iter().collect();
+                vec![line(serde_json::json!({
+                    "class": "POLL",
+                    "poses": parsed(&poses),
+                    "targets": parsed(&targets),
+                }))]
+            }
+            "?WATCH" => {
+                // The stream is always on: the answer states it, then the current state.
+                let mut out = vec![line(
+                    serde_json::json!({"class": "WATCH", "enable": true, "json": true}),
+                )];
+                out.extend(latest_devices);
+                out.extend(pose);
+                out.extend(target);
+                out
+            }
+            "?VERSION" => vec![version_json().into()],
+            _ => vec![line(serde_json::json!({
+                "class": "ERROR",
+                "message": format!("unknown request {:?}: ?WATCH; ?DEVICES; ?POLL; ?VERSION;", request.chars().take(40).collect::<String>()),
+            }))],
+        }
+    }
+
     /// Serves one connected client until it leaves, lags, or `stop` is cancelled.
     pub async fn serve_client<W: AsyncWrite + Unpin>(
         &self,
+        out: W,
+        peer: &str,
+        stop: CancellationToken,
+    ) {
+        self.serve_client_with_requests(None::<tokio::io::Empty>, out, peer, stop)
+            .await;
+    }
+
+    /// [`PoseHub::serve_client`], answering the request lines the client sends on `input`.
+    pub async fn serve_client_with_requests<R: AsyncRead + Unpin, W: AsyncWrite + Unpin>(
+        &self,
+        input: Option<R>,
         mut out: W,
         peer: &str,
         stop: CancellationToken,
@@ -255,23 +333,35 @@ impl PoseHub {
                 return;
             }
         }
+        // Requests are read one line at a time, at most 1 kB each.
+        let mut requests = input.map(|i| BufReader::new(i).lines());
         loop {
             let next = tokio::select! {
                 () = stop.cancelled() => break,
-                r = rx.recv() => r,
+                r = rx.recv() => Incoming::Line(r),
+                req = next_request(&mut requests) => Incoming::Request(req),
             };
             match next {
-                Ok(line) => {
+                Incoming::Request(Some(req)) => {
+                    let req: String = req.chars().take(1024).collect();
+                    for line in self.answer(&req) {
+                        if !self.send(&mut out, &line, peer).await {
+                            return;
+                        }
+                    }
+                }
+                Incoming::Request(None) => requests = None,
+                Incoming::Line(Ok(line)) => {
                     if !self.send(&mut out, &line, peer).await {
                         break;
                     }
                 }
-                Err(broadcast::error::RecvError::Lagged(n)) => {
+                Incoming::Line(Err(broadcast::error::RecvError::Lagged(n))) => {
                     tracing::warn!(peer, skipped = n, "pose client too slow; dropping it");
                     self.count_dropped();
                     break;
                 }
-                Err(broadcast::error::RecvError::Closed) => break,
+                Incoming::Line(Err(broadcast::error::RecvError::Closed)) => break,
             }
         }
         let _ = out.shutdown().await;
@@ -325,15 +415,16 @@ impl PoseHub {
                     tokio::spawn(async move {
                         let _slot = slot;
                         let peer = peer.to_string();
-                        let (read, write) = stream.into_split();
-                        if !hub.authenticate(read).await {
+                        let (mut read, write) = stream.into_split();
+                        if !hub.authenticate(&mut read).await {
                             tracing::warn!(%peer, "pose client did not authenticate; refused");
                             let mut write = write;
                             let _ = write_line(&mut write, "{\"class\":\"ERROR\",\"message\":\"authentication required: ?AUTH={\\\"token\\\":\\\"…\\\"};\"}").await;
                             return;
                         }
                         tracing::debug!(%peer, "pose client connected (tcp)");
-                        hub.serve_client(write, &peer, stop).await;
+                        hub.serve_client_with_requests(Some(read), write, &peer, stop)
+                            .await;
                     });
                 }
                 Err(e) => {
@@ -375,7 +466,9 @@ impl PoseHub {
                     let stop = stop.clone();
                     tokio::spawn(async move {
                         let _slot = slot;
-                        hub.serve_client(stream, "unix", stop).await;
+                        let (read, write) = stream.into_split();
+                        hub.serve_client_with_requests(Some(read), write, "unix", stop)
+                            .await;
                     });
                 }
                 Err(e) => {
@@ -399,6 +492,22 @@ async fn write_line<W: AsyncWrite + Unpin>(out: &mut W, line: &str) -> std::io::
     out.write_all(line.as_bytes()).await?;
     out.write_all(b"\n").await?;
     out.flush().await
+}
+
+/// What a client's loop waits for.
+enum Incoming {
+    Line(Result<Arc<str>, broadcast::error::RecvError>),
+    Request(Option<String>),
+}
+
+/// The next request line, or never when the client sends none (any more).
+async fn next_request<R: AsyncRead + Unpin>(
+    requests: &mut Option<tokio::io::Lines<BufReader<R>>>,
+) -> Option<String> {
+    match requests {
+        Some(lines) => lines.next_line().await.ok().flatten(),
+        None => std::future::pending().await,
+    }
 }
 
 /// A client slot, given back when dropped.
@@ -642,6 +751,46 @@ mod tests {
         std::fs::write(&path, "theirs").unwrap();
         socket.remove();
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "theirs");
+    }
+
+    #[tokio::test]
+    async fn requests_are_answered_with_the_current_state() {
+        let (hub, addr, stop) = tcp_hub(Access::default()).await;
+        hub.publish_device(
+            "hf",
+            "{\"class\":\"DEVICE\",\"name\":\"hf\",\"state\":\"connected\"}".into(),
+        );
+        hub.publish_pose("{\"class\":\"POSE\",\"x\":1.5}".into());
+        let mut s = tokio::net::TcpStream::connect(addr).await.unwrap();
+        s.write_all(b"?DEVICES;\n?POLL;\n?WATCH={\"enable\":true};\n?NONSENSE;\n")
+            .await
+            .unwrap();
+        let mut lines = BufReader::new(s).lines();
+        let mut got = Vec::new();
+        while got.len() < 10 {
+            match tokio::time::timeout(Duration::from_secs(2), lines.next_line()).await {
+                Ok(Ok(Some(l))) => got.push(l),
+                _ => break,
+            }
+        }
+        let classes: Vec<String> = got
+            .iter()
+            .map(|l| {
+                serde_json::from_str::<serde_json::Value>(l).unwrap()["class"]
+                    .as_str()
+                    .unwrap()
+                    .to_string()
+            })
+            .collect();
+        // Greeting, then the answers in order.
+        assert_eq!(
+            classes,
+            ["VERSION", "DEVICE", "POSE", "DEVICES", "POLL", "WATCH", "DEVICE", "POSE", "ERROR"],
+            "{got:?}"
+        );
+        assert!(got[3].contains("\"name\":\"hf\""), "{}", got[3]);
+        assert!(got[4].contains("\"x\":1.5"), "{}", got[4]);
+        stop.cancel();
     }
 
     #[tokio::test]

@@ -150,6 +150,14 @@ pub struct DelayedInit {
     /// Accept the triangulated position only if the largest standard deviation of its 2×2
     /// covariance is at most this (m).
     pub max_std_m: f64,
+    /// Once a pending beacon has at least this many views, also accept a triangulation whose
+    /// largest σ is at most `max_relative_std` times its distance from the mean view position:
+    /// far beacons seen from a short baseline never reach `max_std_m`, but their views then
+    /// define a unimodal, well-conditioned estimate, which enters the map with its full
+    /// covariance and is refined by every later sweep. 0 turns this off.
+    pub relax_after_views: usize,
+    /// Relative σ bound of `relax_after_views` (dimensionless).
+    pub max_relative_std: f64,
     /// Keep a copy of the robot pose of every view in the filter state (one per update batch
     /// that stores a view), correlated with everything else and refined by later updates, until
     /// no pending view refers to it. The triangulated beacon then enters the map with its exact
@@ -169,6 +177,8 @@ impl Default for DelayedInit {
             max_views: 30,
             min_baseline_m: 0.5,
             max_std_m: 1.5,
+            relax_after_views: 0,
+            max_relative_std: 0.25,
             view_poses_in_state: true,
             delay_range_bearing: false,
         }

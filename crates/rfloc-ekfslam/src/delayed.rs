@@ -266,11 +266,20 @@ pub(crate) fn triangulate(
     let max_cost = dof + 4.0 * (2.0 * dof).sqrt() + 10.0;
     let eig = cov.symmetric_eigenvalues();
     let max_var = eig.max();
+    // The relaxed bound: a σ small against the distance, after enough views.
+    let centre = views
+        .iter()
+        .map(|v| Vector2::new(v.pose.x, v.pose.y))
+        .sum::<Vector2<f64>>()
+        / views.len() as f64;
+    let relaxed = dc.relax_after_views > 0
+        && views.len() >= dc.relax_after_views
+        && max_var.sqrt() <= dc.max_relative_std * (b - centre).norm();
     if !(b.x.is_finite()
         && b.y.is_finite()
         && cost <= max_cost
         && max_var > 0.0
-        && max_var.sqrt() <= dc.max_std_m)
+        && (max_var.sqrt() <= dc.max_std_m || relaxed))
     {
         return None;
     }

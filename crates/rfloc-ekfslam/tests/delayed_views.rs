@@ -154,3 +154,68 @@ fn views_in_the_state_are_consistent_and_beat_attaching_to_the_current_pose() {
         "{rmse_copies} vs {rmse_attached}"
     );
 }
+
+/// A robot circling a 0.5 m loop sees a beacon 7.6 m away from a 1 m baseline: the triangulation
+/// never reaches σ ≤ 0.3 m, so with the absolute bound alone the beacon is never mapped. With
+/// `relax_after_views` it is mapped once its σ is a quarter of its distance, and over
+/// Monte-Carlo runs its final error is consistent with its covariance (2-dof NEES).
+#[test]
+fn far_beacons_of_a_short_baseline_are_mapped_with_their_uncertainty() {
+    const FAR: (u64, f64, f64) = (9, 7.0, 3.0);
+    let cfg = |relax: usize| EkfSlamConfig {
+        velocity_noise: VelocityNoise {
+            sigma_v: 0.01,
+            sigma_omega: 0.01,
+        },
+        delayed_init: DelayedInit {
+            delay_range_bearing: true,
+            max_std_m: 0.3,
+            relax_after_views: relax,
+            max_relative_std: 0.25,
+            ..DelayedInit::default()
+        },
+        ..EkfSlamConfig::default()
+    };
+    let run = |cfg: EkfSlamConfig, seed: u64| {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let start = Pose2::new(0.0, 0.0, 0.0);
+        let mut f = EkfSlam::new(cfg, start, Matrix3::zeros()).unwrap();
+        let mut truth = start;
+        let n = cfg.velocity_noise;
+        let pl = f.config().path_loss;
+        for k in 0..1200 {
+            // A circle of 0.5 m radius: 0.2 m/s, 0.4 rad/s.
+            truth = step_truth(&truth, 0.2, 0.4, 0.1, n.sigma_v, n.sigma_omega, &mut rng);
+            f.predict_velocity(0.2, 0.4, 0.1).unwrap();
+            if k % 30 == 0 {
+                let (r, b) = range_bearing(&truth, FAR.1, FAR.2);
+                let obs = BeaconObservation::rssi_bearing(
+                    FAR.0,
+                    pl.rssi_at(r) + gauss(&mut rng, 3.0),
+                    b + gauss(&mut rng, 2f64.to_radians()),
+                    3.0,
+                    2f64.to_radians(),
+                );
+                f.update(&[obs]);
+            }
+        }
+        f
+    };
+    assert!(run(cfg(0), 7).beacon(FAR.0).is_none(), "never mapped");
+    let runs: u32 = 40;
+    let mut nees = 0.0;
+    let mut mapped: u32 = 0;
+    for seed in 0..runs {
+        let f = run(cfg(20), 500 + u64::from(seed));
+        if let Some(b) = f.beacon(FAR.0) {
+            mapped += 1;
+            let e = nalgebra::Vector2::new(b.position.x - FAR.1, b.position.y - FAR.2);
+            nees += (e.transpose() * b.covariance.try_inverse().unwrap() * e)[(0, 0)];
+        }
+    }
+    assert_eq!(mapped, runs, "mapped in every run");
+    let anees = nees / f64::from(mapped);
+    println!("far beacon ANEES {anees:.2} (2 dof) over {mapped} runs");
+    // 99 % band of the mean of 40 χ²₂ draws: [1.43, 2.71].
+    assert!((1.43..2.71).contains(&anees), "ANEES {anees}");
+}

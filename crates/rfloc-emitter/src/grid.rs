@@ -5,6 +5,12 @@
 //! "hit" update if the beam returned a range below its maximum (a max-range reading marks free
 //! only). Log-odds are clamped so the map can still change. Export uses the seed's values:
 //! 100 occupied, 0 free, −1 unknown.
+//!
+//! A grid made with `growable = true` has no fixed size: [`OccupancyGrid::ensure_contains`]
+//! extends it (in whole chunks of [`GROWTH_CHUNK_CELLS`] cells, keeping every cell boundary
+//! where it was) whenever a scan or a goal falls outside, up to `max_cells`. The first extent
+//! is only the initial size. Growing towards −x or −y moves the origin and so renumbers the
+//! cells; callers holding [`GridCell`]s compare [`OccupancyGridConfig::origin`] to notice.
 
 use rfloc_pose::Pose2;
 use serde::{Deserialize, Serialize};
@@ -47,6 +53,19 @@ pub struct OccupancyGridConfig {
     pub occupied_threshold: f32,
     /// Export as free (0) at or below this log-odds (−0.3); between the two: unknown (−1).
     pub free_threshold: f32,
+    /// The grid may grow beyond `width × height` (see [`OccupancyGrid::ensure_contains`]).
+    #[serde(default)]
+    pub growable: bool,
+    /// Largest number of cells a growable grid may reach.
+    #[serde(default = "default_max_cells")]
+    pub max_cells: usize,
+}
+
+/// Cells added at a time when a growable grid grows (a multiple of this per side).
+pub const GROWTH_CHUNK_CELLS: usize = 32;
+
+fn default_max_cells() -> usize {
+    4_000_000
 }
 
 impl Default for OccupancyGridConfig {
@@ -63,6 +82,8 @@ impl Default for OccupancyGridConfig {
             log_odds_max: 3.5,
             occupied_threshold: 0.5,
             free_threshold: -0.3,
+            growable: false,
+            max_cells: default_max_cells(),
         }
     }
 }
@@ -142,6 +163,11 @@ impl OccupancyGrid {
             .checked_mul(config.height)
             .filter(|&c| c > 0 && c <= 64_000_000)
             .ok_or(EmitterError::InvalidConfig("grid must have 1..=64e6 cells"))?;
+        if config.growable && !(config.max_cells >= cells && config.max_cells <= 64_000_000) {
+            return Err(EmitterError::InvalidConfig(
+                "max_cells must be at least the initial cells and at most 64e6",
+            ));
+        }
         if !config.origin.is_finite() {
             return Err(EmitterError::InvalidConfig("grid origin must be finite"));
         }
@@ -169,6 +195,92 @@ impl OccupancyGrid {
     #[must_use]
     pub fn width(&self) -> usize {
         self.config.width
+    }
+
+    /// World coordinates of the upper-right corner of the grid.
+    #[must_use]
+    pub fn upper_corner(&self) -> Point2 {
+        let r = self.config.resolution_m;
+        Point2::new(
+            self.config.origin.x + self.config.width as f64 * r,
+            self.config.origin.y + self.config.height as f64 * r,
+        )
+    }
+
+    /// True when the box `[lo, hi]` lies inside the grid.
+    #[must_use]
+    pub fn contains_box(&self, lo: &Point2, hi: &Point2) -> bool {
+        let up = self.upper_corner();
+        lo.x >= self.config.origin.x && lo.y >= self.config.origin.y && hi.x < up.x && hi.y < up.y
+    }
+
+    /// Grows a growable grid so that the box `[lo, hi]` lies inside it. New cells are unknown;
+    /// each side grows by whole chunks of [`GROWTH_CHUNK_CELLS`] cells and every existing cell
+    /// keeps its place in the world (the origin moves by whole cells). Returns the number of
+    /// columns and rows added on the low side (by which existing cell indices moved), or
+    /// `None` when nothing changed: the box was inside already, the grid is not growable, the
+    /// box is not finite, or the grown grid would exceed `max_cells` (the grid is then left
+    /// as it was).
+    pub fn ensure_contains(&mut self, lo: &Point2, hi: &Point2) -> Option<(usize, usize)> {
+        if !self.config.growable || !lo.is_finite() || !hi.is_finite() {
+            return None;
+        }
+        if self.contains_box(lo, hi) {
+            return None;
+        }
+        let r = self.config.resolution_m;
+        let (ox, oy) = (self.config.origin.x, self.config.origin.y);
+        let chunk = GROWTH_CHUNK_CELLS as f64;
+        // Whole chunks needed on each side, as cell counts.
+        let need = |outside_m: f64| -> Option<usize> {
+            if outside_m <= 0.0 {
+                return Some(0);
+            }
+            let cells = (outside_m / r).floor() + 1.0;
+            let chunks = (cells / chunk).ceil();
+            (chunks * chunk < 1e9).then_some((chunks * chunk) as usize)
+        };
+        let up = self.upper_corner();
+        let add_left = need(ox - lo.x)?;
+        let add_down = need(oy - lo.y)?;
+        let add_right = need(hi.x - up.x + r * 1e-9)?;
+        let add_up = need(hi.y - up.y + r * 1e-9)?;
+        let width = self
+            .config
+            .width
+            .checked_add(add_left)?
+            .checked_add(add_right)?;
+        let height = self
+            .config
+            .height
+            .checked_add(add_down)?
+            .checked_add(add_up)?;
+        let cells = width.checked_mul(height)?;
+        if cells > self.config.max_cells {
+            tracing::debug!(
+                width,
+                height,
+                max_cells = self.config.max_cells,
+                "occupancy grid: growth refused (max_cells)"
+            );
+            return None;
+        }
+        let mut log_odds = vec![0.0f32; cells];
+        for iy in 0..self.config.height {
+            let from = iy * self.config.width;
+            let to = (iy + add_down) * width + add_left;
+            if let (Some(src), Some(dst)) = (
+                self.log_odds.get(from..from + self.config.width),
+                log_odds.get_mut(to..to + self.config.width),
+            ) {
+                dst.copy_from_slice(src);
+            }
+        }
+        self.log_odds = log_odds;
+        self.config.width = width;
+        self.config.height = height;
+        self.config.origin = Point2::new(ox - add_left as f64 * r, oy - add_down as f64 * r);
+        Some((add_left, add_down))
     }
 
     /// Rows.
@@ -243,6 +355,14 @@ impl OccupancyGrid {
         let hi = self.config.log_odds_max;
         if let Some(slot) = self.index(c).and_then(|i| self.log_odds.get_mut(i)) {
             *slot = hi;
+        }
+    }
+
+    /// Sets a cell's log-odds (clamped); ignored outside the grid.
+    pub fn set_log_odds(&mut self, c: GridCell, value: f32) {
+        let (lo, hi) = (self.config.log_odds_min, self.config.log_odds_max);
+        if let Some(slot) = self.index(c).and_then(|i| self.log_odds.get_mut(i)) {
+            *slot = value.clamp(lo, hi);
         }
     }
 

@@ -5,7 +5,8 @@
 //! Rules, in priority order:
 //! 1. **Bumpers**: front contact → reverse, rear contact → drive forward (state `Avoiding`).
 //! 2. **No target** → `Searching`: turn slowly on the spot.
-//! 3. **Arrived**: the target is within `arrival_distance_m` (seed: 50 cm) → stop.
+//! 3. **Arrived**: the target is within `arrival_distance_m` (seed: 50 cm) → stop; if its
+//!    spread exceeds `arrival_max_sigma_m`, turn slowly on the spot instead (`Searching`).
 //! 4. **Obstacle** within `obstacle_distance_m` (seed: 20 cm) in the front sector → `Avoiding`:
 //!    turn on the spot, towards the side with more clearance, until the sector is clear.
 //! 5. **Driving**: with the planner on, follow the waypoints of an A* path from the robot cell to
@@ -40,6 +41,12 @@ pub struct NavigatorConfig {
     pub front_sector_deg: f64,
     /// Stop when the target is this close, metres (seed: 0.50).
     pub arrival_distance_m: f64,
+    /// Arrival is declared only while the target's spread (`target_sigma_m`) is at most
+    /// this, metres; closer than the arrival distance to a vaguer estimate the robot turns
+    /// on the spot (`Searching`) and keeps measuring. Infinite by default (the seed has no
+    /// such test).
+    #[serde(default = "infinite")]
+    pub arrival_max_sigma_m: f64,
     /// Speed of the bumper reflex (reverse or forward), m/s.
     pub bumper_speed_mps: f64,
     /// Turn rate while searching for a target, rad/s.
@@ -67,6 +74,7 @@ impl Default for NavigatorConfig {
             obstacle_distance_m: 0.2,
             front_sector_deg: 45.0,
             arrival_distance_m: 0.5,
+            arrival_max_sigma_m: f64::INFINITY,
             bumper_speed_mps: 0.1,
             search_turn_rate_rps: 0.3,
             use_planner: true,
@@ -76,6 +84,10 @@ impl Default for NavigatorConfig {
             path_costs: PathCosts::default(),
         }
     }
+}
+
+fn infinite() -> f64 {
+    f64::INFINITY
 }
 
 /// Contact sensors.
@@ -109,6 +121,9 @@ pub struct NavigatorInput<'a> {
     pub pose: Pose2,
     /// Target position (the filter's weighted mean), or `None` before the first estimate.
     pub target: Option<Point2>,
+    /// Spread of the target estimate (square root of its covariance's largest eigenvalue),
+    /// metres; `None` when unknown (then taken as good enough to arrive).
+    pub target_sigma_m: Option<f64>,
     /// Occupancy grid in the same frame.
     pub grid: &'a OccupancyGrid,
     /// Latest range scan, beam angles relative to the robot heading.
@@ -139,6 +154,8 @@ pub struct EmitterNavigator {
     next_waypoint: usize,
     last_plan_time: Option<f64>,
     planned_goal: Option<GridCell>,
+    /// Grid origin when the plan was made: a grown grid renumbers its cells.
+    planned_origin: Option<Point2>,
     avoid_turn_sign: Option<f64>,
     plans: u64,
 }
@@ -154,6 +171,7 @@ impl EmitterNavigator {
             next_waypoint: 0,
             last_plan_time: None,
             planned_goal: None,
+            planned_origin: None,
             avoid_turn_sign: None,
             plans: 0,
         }
@@ -222,6 +240,18 @@ impl EmitterNavigator {
         let here = Point2::new(input.pose.x, input.pose.y);
         if here.distance(&target) <= cfg.arrival_distance_m {
             self.avoid_turn_sign = None;
+            let vague = input
+                .target_sigma_m
+                .is_some_and(|s| s.is_nan() || s > cfg.arrival_max_sigma_m);
+            if vague {
+                // At a vague estimate: turn on the spot and keep measuring.
+                return cmd(
+                    0.0,
+                    cfg.search_turn_rate_rps,
+                    NavigatorState::Searching,
+                    false,
+                );
+            }
             return cmd(0.0, 0.0, NavigatorState::Arrived, false);
         }
         if let Some(sign) = self.obstacle_turn(input.scan) {
@@ -301,6 +331,9 @@ impl EmitterNavigator {
         if self.path.is_empty() || input.time_s - last >= self.config.replan_period_s {
             return true;
         }
+        if self.planned_origin != Some(input.grid.config().origin) {
+            return true; // the grid grew: the plan's cells are numbered differently now
+        }
         if input.grid.world_to_cell(target) != self.planned_goal {
             return true;
         }
@@ -360,6 +393,7 @@ impl EmitterNavigator {
             }
             self.path = p.cells;
             self.planned_goal = Some(goal);
+            self.planned_origin = Some(input.grid.config().origin);
             self.next_waypoint = 0;
         }
         true

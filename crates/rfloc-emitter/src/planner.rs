@@ -16,7 +16,7 @@
 //! practice blocks it.
 
 use std::cmp::Reverse;
-use std::collections::BinaryHeap;
+use std::collections::{BinaryHeap, HashMap};
 
 use serde::{Deserialize, Serialize};
 
@@ -222,9 +222,9 @@ pub fn plan_path(
     // State index: cell index * 5 + heading index (4 = "no heading yet", only at the start).
     let state =
         |c: GridCell, hd: Option<Heading4>| (c.iy * w + c.ix) * 5 + hd.map_or(4, Heading4::index);
-    let n_states = w * h * 5;
-    let mut g = vec![u64::MAX; n_states];
-    let mut parent: Vec<u32> = vec![u32::MAX; n_states];
+    // Cost so far and parent state of every state reached. Sparse: a growable map can be
+    // large, and a search touches only the states near its path.
+    let mut g: HashMap<usize, (u64, usize)> = HashMap::new();
     let min_step = u64::from(costs.min_step());
     let heuristic = |c: GridCell| -> u64 {
         (c.ix.abs_diff(goal.ix) + c.iy.abs_diff(goal.iy)) as u64 * min_step
@@ -235,13 +235,13 @@ pub fn plan_path(
         (GridCell::new(cell_index % w, cell_index / w), hd)
     };
     let s0 = state(start, start_heading);
-    *g.get_mut(s0)? = 0;
+    g.insert(s0, (0, usize::MAX));
     let mut open = BinaryHeap::new();
     // Ties on f are broken towards larger g (deeper nodes) for fewer expansions.
     open.push(Reverse((heuristic(start), Reverse(0u64), s0)));
     let mut expanded = 0usize;
     while let Some(Reverse((_f, Reverse(gs), s))) = open.pop() {
-        if gs > g.get(s).copied().unwrap_or(u64::MAX) {
+        if gs > g.get(&s).map_or(u64::MAX, |e| e.0) {
             continue; // stale entry
         }
         expanded += 1;
@@ -249,11 +249,11 @@ pub fn plan_path(
         if cell == goal {
             let mut cells = vec![cell];
             let mut cur = s;
-            while let Some(&p) = parent.get(cur) {
-                if p == u32::MAX {
+            while let Some(&(_, p)) = g.get(&cur) {
+                if p == usize::MAX {
                     break;
                 }
-                cur = p as usize;
+                cur = p;
                 cells.push(decode(cur).0);
             }
             cells.reverse();
@@ -275,14 +275,9 @@ pub fn plan_path(
             let turns = hd.map_or(0, |h0| h0.quarter_turns(dir));
             let ng = gs + u64::from(step) + u64::from(turns) * u64::from(costs.turn);
             let ns = state(next, Some(dir));
-            if let Some(slot) = g.get_mut(ns) {
-                if ng < *slot {
-                    *slot = ng;
-                    if let Some(p) = parent.get_mut(ns) {
-                        *p = u32::try_from(s).unwrap_or(u32::MAX);
-                    }
-                    open.push(Reverse((ng + heuristic(next), Reverse(ng), ns)));
-                }
+            if ng < g.get(&ns).map_or(u64::MAX, |e| e.0) {
+                g.insert(ns, (ng, s));
+                open.push(Reverse((ng + heuristic(next), Reverse(ng), ns)));
             }
         }
     }

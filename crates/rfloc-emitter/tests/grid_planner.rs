@@ -437,3 +437,88 @@ proptest! {
         prop_assert!(t(&p_hi.cells) <= t(&p_lo.cells));
     }
 }
+
+fn growable(w: usize, h: usize, max_cells: usize) -> OccupancyGrid {
+    OccupancyGrid::new(OccupancyGridConfig {
+        width: w,
+        height: h,
+        origin: Point2::new(0.0, 0.0),
+        growable: true,
+        max_cells,
+        ..OccupancyGridConfig::default()
+    })
+    .unwrap()
+}
+
+#[test]
+fn a_growable_grid_grows_in_chunks_and_keeps_every_cell_in_place() {
+    let mut g = growable(10, 10, 1_000_000);
+    let wall = Point2::new(1.1, 0.9);
+    let c = g.world_to_cell(&wall).unwrap();
+    g.mark_occupied(c);
+    // A point 30 m to the south-west: the grid grows on the low sides, the origin moves by
+    // whole cells and the marked cell is still where it was in the world.
+    let far = Point2::new(-30.0, -12.0);
+    let shift = g.ensure_contains(&far, &far).unwrap();
+    assert_eq!(shift.0 % 32, 0);
+    assert_eq!(shift.1 % 32, 0);
+    assert!(g.world_to_cell(&far).is_some());
+    let moved = g.world_to_cell(&wall).unwrap();
+    assert_eq!(moved, GridCell::new(c.ix + shift.0, c.iy + shift.1));
+    assert_eq!(g.class(moved), CellClass::Occupied);
+    let o = g.config().origin;
+    let r = g.resolution();
+    assert!(((o.x / r) - (o.x / r).round()).abs() < 1e-9, "{o:?}");
+    // Already inside: nothing changes.
+    let before = g.width() * g.height();
+    assert_eq!(g.ensure_contains(&wall, &far), None);
+    assert_eq!(g.width() * g.height(), before);
+    // Growth on the high side leaves the indices alone.
+    let east = Point2::new(45.0, 1.0);
+    assert_eq!(g.ensure_contains(&east, &east), Some((0, 0)));
+    assert_eq!(g.world_to_cell(&wall), Some(moved));
+    assert!(g.world_to_cell(&east).is_some());
+}
+
+#[test]
+fn growth_stops_at_max_cells_and_a_fixed_grid_never_grows() {
+    let mut g = growable(10, 10, 64 * 64);
+    let far = Point2::new(500.0, 500.0);
+    assert_eq!(g.ensure_contains(&far, &far), None, "beyond max_cells");
+    assert_eq!((g.width(), g.height()), (10, 10));
+    let mut fixed = grid(10, 10);
+    assert_eq!(fixed.ensure_contains(&far, &far), None);
+    assert_eq!((fixed.width(), fixed.height()), (10, 10));
+    assert!(OccupancyGrid::new(OccupancyGridConfig {
+        growable: true,
+        max_cells: 50,
+        ..OccupancyGridConfig::default()
+    })
+    .is_err());
+}
+
+#[test]
+fn scans_far_from_the_start_land_in_a_grown_grid_and_plan() {
+    let mut g = growable(60, 60, 4_000_000);
+    let sensor = Pose2::new(40.0, 3.0, 0.0);
+    let beams = [ScanBeam {
+        angle_rad: 0.0,
+        range_m: 2.0,
+        max_range_m: 5.6,
+    }];
+    // A scan outside the grid is clipped unless the grid grows first.
+    assert_eq!(g.integrate_scan(&sensor, &beams).hits, 0);
+    g.ensure_contains(&Point2::new(39.0, 2.0), &Point2::new(43.0, 4.0))
+        .unwrap();
+    assert_eq!(g.integrate_scan(&sensor, &beams).hits, 1);
+    let hit = g.world_to_cell(&Point2::new(42.0, 3.0)).unwrap();
+    assert_eq!(g.class(hit), CellClass::Occupied);
+    // A* from the start to the far end across the grown grid.
+    let costs = PathCosts::default();
+    let map = CostMap::from_grid(&g, &costs);
+    let start = g.world_to_cell(&Point2::new(1.0, 1.0)).unwrap();
+    let goal = g.world_to_cell(&Point2::new(41.0, 3.0)).unwrap();
+    let p = plan_path(&map, start, goal, None, &costs).unwrap();
+    assert_eq!(p.cells.first(), Some(&start));
+    assert_eq!(p.cells.last(), Some(&goal));
+}

@@ -33,6 +33,7 @@ fn input<'a>(
         time_s: t,
         pose,
         target,
+        target_sigma_m: None,
         grid,
         scan,
         bumpers: Bumpers::default(),
@@ -55,6 +56,31 @@ fn searching_without_target_and_arrived_near_it() {
     ));
     assert_eq!(c.state, NavigatorState::Arrived);
     assert_eq!((c.v_mps, c.omega_rps), (0.0, 0.0));
+}
+
+#[test]
+fn no_arrival_at_a_vague_estimate() {
+    let g = open_grid();
+    let mut nav = EmitterNavigator::new(NavigatorConfig {
+        arrival_max_sigma_m: 1.0,
+        ..NavigatorConfig::default()
+    });
+    let mut inp = input(0.0, Pose2::default(), Some(Point2::new(0.2, 0.1)), &g, &[]);
+    inp.target_sigma_m = Some(4.0);
+    let c = nav.step(&inp);
+    assert_eq!(
+        c.state,
+        NavigatorState::Searching,
+        "spread 4 m: keep measuring"
+    );
+    assert_eq!(c.v_mps, 0.0);
+    assert!(c.omega_rps != 0.0, "turns on the spot");
+    inp.target_sigma_m = Some(f64::NAN);
+    assert_eq!(nav.step(&inp).state, NavigatorState::Searching);
+    inp.target_sigma_m = Some(0.4);
+    assert_eq!(nav.step(&inp).state, NavigatorState::Arrived);
+    inp.target_sigma_m = None;
+    assert_eq!(nav.step(&inp).state, NavigatorState::Arrived);
 }
 
 #[test]

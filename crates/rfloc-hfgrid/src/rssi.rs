@@ -106,6 +106,20 @@ impl RssiModel {
         }
     }
 
+    /// The same model with every band edge (distance) multiplied by `k`: a reader whose
+    /// RSSI-to-distance calibration is `k` times the true one.
+    #[must_use]
+    pub fn scaled(&self, k: f64) -> Self {
+        let mut out = self.clone();
+        if k.is_finite() && k > 0.0 {
+            for b in &mut out.bands {
+                b.lo_m *= k;
+                b.hi_m *= k;
+            }
+        }
+        out
+    }
+
     /// Largest distance at which a tag can be read, m.
     #[must_use]
     pub fn max_range_m(&self) -> f64 {

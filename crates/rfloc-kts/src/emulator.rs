@@ -114,7 +114,17 @@ pub struct EmulatorConfig {
     pub seed: u64,
     /// Identification lines answered to `ATI` (the emulator's own, not the module's).
     pub ident: Vec<String>,
+    /// The RSSI (0–7) of a tag at a distance (metres) from the antenna centre, `None` beyond
+    /// the read range; called once per tag in range per scan (a simulator's noisy model).
+    /// `None`: seed 002's emulator table ([`crate::rssi_table`]), noise-free.
+    pub rssi: Option<RssiFn>,
+    /// Where each tag really lies relative to its grid position (metres), row-major like
+    /// [`TagGrid::tags`]; missing entries are exact. Placement error of a real floor.
+    pub tag_offsets: Vec<(f64, f64)>,
 }
+
+/// A reader's RSSI as a function of the antenna–tag distance (metres).
+pub type RssiFn = Arc<dyn Fn(f64) -> Option<u8> + Send + Sync>;
 
 impl std::fmt::Debug for EmulatorConfig {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -124,6 +134,8 @@ impl std::fmt::Debug for EmulatorConfig {
             .field("time_scale", &self.time_scale)
             .field("miss_probability", &self.miss_probability)
             .field("seed", &self.seed)
+            .field("rssi", &self.rssi.as_ref().map(|_| "custom"))
+            .field("tag_offsets", &self.tag_offsets.len())
             .finish_non_exhaustive()
     }
 }
@@ -143,6 +155,8 @@ impl EmulatorConfig {
                 "rfloc KTS RFIDM1356 emulator".to_string(),
                 "S/N 0000000001".to_string(),
             ],
+            rssi: None,
+            tag_offsets: Vec::new(),
         }
     }
 }
@@ -233,7 +247,16 @@ pub struct KtsEmulator {
 impl KtsEmulator {
     #[must_use]
     pub fn new(config: EmulatorConfig) -> Self {
-        let tags = config.grid.tags();
+        let tags = config
+            .grid
+            .tags()
+            .into_iter()
+            .enumerate()
+            .map(|(i, (uid, x, y))| {
+                let (dx, dy) = config.tag_offsets.get(i).copied().unwrap_or((0.0, 0.0));
+                (uid, x + dx, y + dy)
+            })
+            .collect();
         let rng = ChaCha8Rng::seed_from_u64(config.seed);
         Self {
             config,
@@ -406,8 +429,12 @@ impl KtsEmulator {
         let mut out = String::new();
         let mut now_in = BTreeSet::new();
         for (uid, x, y) in &self.tags {
-            let d_cm = ((x - ax).powi(2) + (y - ay).powi(2)).sqrt() * 100.0;
-            let Some(main) = rssi_at_distance(d_cm) else {
+            let d_m = ((x - ax).powi(2) + (y - ay).powi(2)).sqrt();
+            let main = match &self.config.rssi {
+                Some(f) => f(d_m),
+                None => rssi_at_distance(d_m * 100.0),
+            };
+            let Some(main) = main else {
                 continue;
             };
             now_in.insert(uid.clone());

@@ -29,7 +29,9 @@ pub use client::{KtsClient, KtsClientError, KtsConfig, KtsStats, TagEventSource,
 pub use codec::{CodecStats, KtsCodec};
 pub use command::KtsCommand;
 #[cfg(feature = "emulator")]
-pub use emulator::{EmulatorConfig, KtsEmulator, ScanControl, ScanStep, TagGrid, UidScheme};
+pub use emulator::{
+    EmulatorConfig, KtsEmulator, RssiFn, ScanControl, ScanStep, TagGrid, UidScheme,
+};
 pub use event::{TagEvent, TagEventKind};
 pub use framing::{FramedLine, LineFramer, MAX_LINE_LEN};
 pub use line::{parse_line, KtsLine, MalformedLine, MalformedReason, Rssi};

@@ -3,5 +3,6 @@
 //! robot; the daemon reaches it only through `rfloc_daemon::simulation`.
 #![forbid(unsafe_code)]
 
+pub mod emulate;
 pub mod scenario;
 pub mod sim;

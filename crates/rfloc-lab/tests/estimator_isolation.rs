@@ -57,7 +57,8 @@ fn robot(port: u16) -> RobotConfig {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
     let text = std::fs::read_to_string(root.join("config/sim.toml"))
         .unwrap()
-        .replace("127.0.0.1:2948", &format!("127.0.0.1:{port}"))
+        .replace("127.0.0.1:2958", &format!("127.0.0.1:{port}"))
+        .replace("listen = \"127.0.0.1:8765\"", "listen = \"127.0.0.1:0\"")
         .replace("stdout = true", "stdout = false")
         .replace("duration_s = 40.0", "duration_s = 30.0");
     let ext: &[&dyn SectionCheck] = &[&rfloc_lab::sim::SimulationSection];

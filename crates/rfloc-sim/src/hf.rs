@@ -18,7 +18,10 @@
 //! is reported over several millimetres, and repeated readings differ) is modelled by
 //! Gaussian noise of `spread_levels` on the continuous curve before rounding.
 //! Distances are horizontal (tag plane to antenna centre); the 1.5 cm height is inside the
-//! measured table. The antenna sits 10 cm ahead of the robot centre (seed 002 section 5).
+//! measured table. The antenna sits 10 cm from the robot centre (seed 002 section 5), behind
+//! it as in the seed 002 trial and the daemon's `antenna_offset_m`. A tag in range is missed
+//! on a scan with `miss_probability`, and every tag may lie off its grid position by a
+//! Gaussian placement error of `placement_sigma_m` per axis (drawn once per trial).
 
 use rand::Rng;
 use rfloc_pose::Pose2;
@@ -29,7 +32,7 @@ use crate::world::HfTag;
 
 /// Maximum read distance, metres (Table 4, RSSI 0 maximal distance 14 cm).
 pub const MAX_READ_DISTANCE: f64 = 0.14;
-/// Antenna offset ahead of the robot centre, metres (seed 002: 10 cm).
+/// Antenna offset behind the robot centre, metres (seed 002: 10 cm).
 pub const ANTENNA_OFFSET: f64 = 0.10;
 
 /// Knots `(distance cm, RSSI)` of the blind-spot curve reconstructed from Table 4.
@@ -79,7 +82,34 @@ pub enum HfCurve {
     BlindSpot,
     /// Idealised monotonic relation (seed 002 section 6.1, first emulator).
     Monotonic,
+    /// Seed 002's own emulator table (Appendix A, the bands the KTS emulator and the
+    /// estimator use: 14, 9.75, 9.0, … 2.75 cm), stepwise; `spread_levels` is added to the
+    /// band's level before rounding. With no spread this is the emulator that shared the
+    /// estimator's table (the setting of the results before the simulator's own curve).
+    SeedEmulator,
 }
+
+/// Seed 002 Appendix A band edges (cm, decreasing) and the level of each band below its edge.
+const SEED_EMULATOR_BANDS: [(f64, f64); 18] = [
+    (14.0, 0.0),
+    (9.75, 1.0),
+    (9.0, 2.0),
+    (8.0, 3.0),
+    (7.0, 4.0),
+    (6.0, 5.0),
+    (5.8, 4.0),
+    (5.5, 3.0),
+    (5.3, 2.0),
+    (5.1, 1.0),
+    (5.0, 0.0),
+    (4.7, 1.0),
+    (4.5, 2.0),
+    (4.3, 3.0),
+    (4.2, 4.0),
+    (4.0, 5.0),
+    (3.5, 6.0),
+    (2.75, 7.0),
+];
 
 /// Parameters of the HF read model.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -88,8 +118,13 @@ pub struct HfModel {
     pub curve: HfCurve,
     /// σ of Gaussian noise added to the continuous RSSI before rounding (levels).
     pub spread_levels: f64,
-    /// Antenna offset ahead of the robot centre, metres.
+    /// Antenna offset behind the robot centre, metres.
     pub antenna_offset: f64,
+    /// Probability that a tag in range is not reported on one scan.
+    pub miss_probability: f64,
+    /// σ of each tag's placement error per axis, metres (the tag map keeps the grid
+    /// positions; the reader sees the displaced tags).
+    pub placement_sigma_m: f64,
 }
 
 impl Default for HfModel {
@@ -98,6 +133,8 @@ impl Default for HfModel {
             curve: HfCurve::BlindSpot,
             spread_levels: 0.35,
             antenna_offset: ANTENNA_OFFSET,
+            miss_probability: 0.1,
+            placement_sigma_m: 0.0,
         }
     }
 }
@@ -119,6 +156,15 @@ impl HfModel {
         let cm = distance * 100.0;
         match self.curve {
             HfCurve::Monotonic => Some(7.0 * (1.0 - cm / 14.0)),
+            HfCurve::SeedEmulator => {
+                // The last edge the distance is below: Appendix A's `r4(last r2 > d)`.
+                let level = SEED_EMULATOR_BANDS
+                    .iter()
+                    .rev()
+                    .find(|(edge, _)| cm < *edge)
+                    .map_or(0.0, |(_, l)| *l);
+                (cm < 14.0).then_some(level)
+            }
             HfCurve::BlindSpot => {
                 let mut prev = (0.0, 7.0);
                 for &(d, r) in &BLIND_SPOT_KNOTS {
@@ -146,10 +192,23 @@ impl HfModel {
             .map(|r| round_level(r + gaussian(rng, self.spread_levels)))
     }
 
-    /// Antenna position (world frame) for a robot pose.
+    /// Antenna position (world frame) for a robot pose: `antenna_offset` behind the centre.
     #[must_use]
     pub fn antenna_position(&self, robot: &Pose2) -> (f64, f64) {
-        robot.transform_point(self.antenna_offset, 0.0)
+        robot.transform_point(-self.antenna_offset, 0.0)
+    }
+
+    /// Every tag's placement error `(dx, dy)`, metres, drawn from `rng` in the order of
+    /// `tags` (zero when `placement_sigma_m` is 0).
+    pub fn placement_errors<R: Rng + ?Sized>(&self, tags: usize, rng: &mut R) -> Vec<(f64, f64)> {
+        (0..tags)
+            .map(|_| {
+                (
+                    gaussian(rng, self.placement_sigma_m),
+                    gaussian(rng, self.placement_sigma_m),
+                )
+            })
+            .collect()
     }
 
     /// The tags read by an antenna at world position `(ax, ay)`, nearest first.
@@ -172,8 +231,10 @@ impl HfModel {
         near.sort_by(|a, b| a.0.total_cmp(&b.0));
         near.into_iter()
             .filter_map(|(d, t)| {
-                self.sample_rssi(d, rng)
-                    .map(|rssi| HfRead { uid: t.uid, rssi })
+                let rssi = self.sample_rssi(d, rng)?;
+                let missed =
+                    self.miss_probability > 0.0 && rng.random::<f64>() < self.miss_probability;
+                (!missed).then_some(HfRead { uid: t.uid, rssi })
             })
             .collect()
     }
@@ -226,6 +287,7 @@ mod tests {
     fn grid_tags_under_antenna_nearest_first() {
         let m = HfModel {
             spread_levels: 0.0,
+            miss_probability: 0.0,
             ..HfModel::default()
         };
         let tags: Vec<HfTag> = (0..9)
@@ -237,9 +299,10 @@ mod tests {
             })
             .collect();
         let mut rng = ChaCha8Rng::seed_from_u64(2);
-        // Robot at (0.2, 0.2) heading 0 → antenna at (0.3, 0.2): only the x = 0.2 column within 14 cm.
+        // Robot at (0.2, 0.2) heading 180° → antenna behind it at (0.3, 0.2): only the
+        // x = 0.2 column within 14 cm.
         let reads = m.tags_under_antenna(
-            m.antenna_position(&Pose2::new(0.2, 0.2, 0.0)),
+            m.antenna_position(&Pose2::new(0.2, 0.2, std::f64::consts::PI)),
             &tags,
             &mut rng,
         );
@@ -250,6 +313,53 @@ mod tests {
         let reads = m.tags_under_antenna((0.15, 0.15), &tags, &mut rng);
         assert_eq!(reads.len(), 4);
         assert!(reads.iter().all(|r| r.rssi == 4));
+    }
+
+    #[test]
+    fn the_seed_emulator_table_is_stepwise() {
+        let m = HfModel {
+            curve: HfCurve::SeedEmulator,
+            ..HfModel::default()
+        };
+        for (cm, level) in [
+            (1.0, 7),
+            (3.0, 6),
+            (4.1, 4),
+            (3.9, 5),
+            (4.95, 0),
+            (5.05, 1),
+            (5.9, 5),
+            (9.5, 1),
+            (13.9, 0),
+        ] {
+            assert_eq!(m.rssi(cm / 100.0), Some(level), "{cm} cm");
+        }
+        assert_eq!(m.rssi(0.14), None);
+    }
+
+    #[test]
+    fn misses_and_placement_errors_have_their_rates() {
+        let m = HfModel {
+            miss_probability: 0.25,
+            placement_sigma_m: 0.004,
+            ..HfModel::default()
+        };
+        let tag = [HfTag {
+            uid: 1,
+            position: Point::new(0.0, 0.0),
+            row: 0,
+            col: 0,
+        }];
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let n = 20_000;
+        let read = (0..n)
+            .filter(|_| !m.tags_under_antenna((0.02, 0.0), &tag, &mut rng).is_empty())
+            .count();
+        let rate = read as f64 / f64::from(n);
+        assert!((rate - 0.75).abs() < 0.02, "{rate}");
+        let e = m.placement_errors(n as usize, &mut rng);
+        let sd = (e.iter().map(|(x, _)| x * x).sum::<f64>() / f64::from(n)).sqrt();
+        assert!((sd / 0.004 - 1.0).abs() < 0.05, "{sd}");
     }
 
     #[test]

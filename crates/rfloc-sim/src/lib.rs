@@ -10,6 +10,7 @@ pub mod emitter;
 pub mod error;
 pub mod geometry;
 pub mod hf;
+pub mod keys;
 pub mod kinematics;
 pub mod metrics;
 pub mod noise;

@@ -149,6 +149,57 @@ pub struct Summary {
     pub extra: Vec<(String, f64)>,
 }
 
+/// For every `X_nees_per_dof` with a `X_nees_dof` beside it in the trials: replaces the mean
+/// over trials by the pooled NEES per degree of freedom (weighted by each trial's dof), sets
+/// `X_nees_dof` to the total, and adds `X_nees_band_low` / `X_nees_band_high`, the two-sided
+/// 95 % band of a consistent filter (χ² with that many dof, divided by it).
+fn pool_nees(results: &[TrialResult], extra: &mut Vec<(String, f64)>) {
+    let keys: Vec<String> = extra
+        .iter()
+        .filter_map(|(k, _)| k.strip_suffix("_nees_per_dof").map(str::to_string))
+        .collect();
+    for prefix in keys {
+        let (per, dof) = (
+            format!("{prefix}_nees_per_dof"),
+            format!("{prefix}_nees_dof"),
+        );
+        let (mut sum, mut total) = (0.0, 0.0);
+        for r in results {
+            let get = |k: &str| r.extra.iter().find(|(n, _)| n == k).map(|(_, v)| *v);
+            if let (Some(v), Some(d)) = (get(&per), get(&dof)) {
+                sum += v * d;
+                total += d;
+            }
+        }
+        if total <= 0.0 {
+            continue;
+        }
+        for (k, v) in extra.iter_mut() {
+            if *k == per {
+                *v = sum / total;
+            } else if *k == dof {
+                *v = total;
+            }
+        }
+        extra.push((
+            format!("{prefix}_nees_band_low"),
+            chi2_quantile(total, -1.959_964) / total,
+        ));
+        extra.push((
+            format!("{prefix}_nees_band_high"),
+            chi2_quantile(total, 1.959_964) / total,
+        ));
+    }
+}
+
+/// Quantile of the χ² distribution with `k` degrees of freedom at the standard normal
+/// quantile `z` (Wilson–Hilferty; within 1 % of the exact value from k = 3 on).
+#[must_use]
+pub fn chi2_quantile(k: f64, z: f64) -> f64 {
+    let a = 2.0 / (9.0 * k);
+    k * (1.0 - a + z * a.sqrt()).powi(3).max(0.0)
+}
+
 fn mean(v: impl Iterator<Item = f64>) -> Option<f64> {
     let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
     (n > 0).then(|| s / n as f64)
@@ -167,7 +218,7 @@ impl Summary {
                 }
             }
         }
-        let extra = names
+        let mut extra: Vec<(String, f64)> = names
             .into_iter()
             .filter_map(|k| {
                 let m = mean(
@@ -178,6 +229,7 @@ impl Summary {
                 m.map(|m| (k, m))
             })
             .collect();
+        pool_nees(results, &mut extra);
         Summary {
             trials: results.len(),
             successes: results.iter().filter(|r| r.success).count(),
@@ -274,6 +326,34 @@ mod tests {
         assert!((p.x - 1.0).abs() < 1e-12);
         // Heading interpolated across ±π, not through 0.
         assert!(p.theta.abs() > 3.0);
+    }
+
+    #[test]
+    fn nees_is_pooled_over_trials_with_its_chi2_band() {
+        let r = |nees: f64, dof: f64| TrialResult {
+            trial: 0,
+            seed: 0,
+            errors: None,
+            time_to_goal: None,
+            success: true,
+            extra: vec![
+                ("beacon_nees_per_dof".into(), nees),
+                ("beacon_nees_dof".into(), dof),
+            ],
+        };
+        let s = Summary::from_trials(&[r(1.0, 8.0), r(2.5, 2.0)]);
+        let get = |k: &str| {
+            s.extra
+                .iter()
+                .find(|(n, _)| n == k)
+                .map(|(_, v)| *v)
+                .unwrap()
+        };
+        assert!((get("beacon_nees_per_dof") - 1.3).abs() < 1e-12);
+        assert_eq!(get("beacon_nees_dof"), 10.0);
+        // χ²(10): 3.247 and 20.483 at 2.5 % and 97.5 %.
+        assert!((get("beacon_nees_band_low") * 10.0 - 3.247).abs() < 0.05);
+        assert!((get("beacon_nees_band_high") * 10.0 - 20.483).abs() < 0.1);
     }
 
     #[test]

@@ -19,6 +19,10 @@ pub struct Published {
     pub scenario: &'static str,
     /// Seed, section and table.
     pub source: &'static str,
+    /// [`crate::Scenario::fingerprint`] of the seed's own scenario file: the report shows these
+    /// numbers only for a scenario with the same fingerprint (`tests/scenarios.rs` checks the
+    /// files against these).
+    pub fingerprint: u64,
     pub metrics: &'static [PublishedMetric],
 }
 
@@ -35,6 +39,7 @@ pub const ALL: &[Published] = &[
     Published {
         scenario: "seed000-sim",
         source: "seed 000 section 4, Table 4.9 (20 simulated trials, 5×5 m, 800 tags, 1000 exploration steps)",
+        fingerprint: 0xc2af23346aeadf14,
         metrics: &[
             m("rmse_m", 0.338, "mean of the per-trial 'RMS Loc Error' column (0.33790395); the text calls it 'averaged an error of 0.34 m'"),
             m("max_error_m", 1.063, "mean of the per-trial 'Max Loc Error' column (1.0627218)"),
@@ -45,21 +50,25 @@ pub const ALL: &[Published] = &[
     Published {
         scenario: "seed001-a",
         source: "seed 001 section 7.2, Table 1 (A: 4 m straight line; mean of 3 runs)",
+        fingerprint: 0x2377f0498cfdb55d,
         metrics: &[m("time_to_goal", 90.0, "s, full system"), m("time_to_goal_preliminary", 89.0, "s, preliminary system")],
     },
     Published {
         scenario: "seed001-b",
         source: "seed 001 section 7.2, Table 1 (B: blocked 4 m straight line)",
+        fingerprint: 0x16c22a74513fabcb,
         metrics: &[m("time_to_goal", 230.0, "s, full system"), m("time_to_goal_preliminary", 126.0, "s, preliminary system")],
     },
     Published {
         scenario: "seed001-c",
         source: "seed 001 section 7.2, Table 1 (C: partially blocked 4 m right angle)",
+        fingerprint: 0xa767c33f6c799df4,
         metrics: &[m("time_to_goal", 225.0, "s, full system"), m("time_to_goal_preliminary", 252.0, "s, preliminary system")],
     },
     Published {
         scenario: "seed001-d",
         source: "seed 001 section 7.2, Table 1 (D: blocked 4 m right angle)",
+        fingerprint: 0xbf9c5a8c97ad6e0e,
         metrics: &[
             m("time_to_goal", 222.0, "s, full system"),
             m("time_to_goal_preliminary", 391.0, "s, preliminary system, the only one of 3 runs that completed"),
@@ -68,6 +77,7 @@ pub const ALL: &[Published] = &[
     Published {
         scenario: "seed001-e",
         source: "seed 001 section 7.2, Table 1 (E: U-turn)",
+        fingerprint: 0x8869062b01bc88a0,
         metrics: &[
             m("time_to_goal", 455.0, "s, full system"),
             PublishedMetric { key: "time_to_goal_preliminary", value: None, note: "preliminary system could not complete" },
@@ -76,6 +86,7 @@ pub const ALL: &[Published] = &[
     Published {
         scenario: "seed002-3x3",
         source: "seed 002 section 7.4 (9-tag test, start (200, 200) mm at 0/90/180/−90°)",
+        fingerprint: 0x13bbc128a05e4127,
         metrics: &[
             m("mean_error_m", 0.0375, "37.5 mm mean position error"),
             m("worst_error_m", 0.077, "77 mm maximum position error"),
@@ -88,6 +99,7 @@ pub const ALL: &[Published] = &[
     Published {
         scenario: "seed002-large",
         source: "seed 002 section 6.4, Table 5 (simulation with emulated data)",
+        fingerprint: 0xad01cd474ce76f0e,
         metrics: &[
             m("mean_error_m", 0.010, "10 mm, own recorded (blind-spot) RSSI data"),
             m("mean_theta_error_rad", 0.349_065_850_398_865_9, "20°, blind-spot RSSI data"),
@@ -98,6 +110,7 @@ pub const ALL: &[Published] = &[
     Published {
         scenario: "seed003-case1",
         source: "seed 003 section 3.3, Table 3.2 (simulation case I)",
+        fingerprint: 0xbe51d131600ecb62,
         metrics: &[
             m("rmse_m", 0.69, "robot position RMSE"),
             m("rmse_theta_rad", 0.04, "robot heading RMSE"),
@@ -110,6 +123,7 @@ pub const ALL: &[Published] = &[
     Published {
         scenario: "seed003-case2",
         source: "seed 003 section 3.4, Table 3.3 (simulation case II)",
+        fingerprint: 0xa05e804523221d72,
         metrics: &[
             m("rmse_m", 0.15, "robot position RMSE"),
             m("rmse_theta_rad", 0.14, "robot heading RMSE"),

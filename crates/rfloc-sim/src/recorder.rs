@@ -1,6 +1,6 @@
 //! Recording one trial (truth and estimate trajectories, extra numbers) and writing a
 //! scenario's outputs: per-trial `truth.csv`, `estimate.csv` (same format) and `plot.svg`,
-//! plus `report.md` with the comparison table.
+//! plus `report.md` with the comparison table and `report.json` with the same metrics.
 
 use std::path::Path;
 
@@ -26,6 +26,8 @@ pub struct TrialRecorder {
     /// Labelled estimated points for the plot (e.g. beacons).
     pub marks: Vec<(String, Point)>,
     success: Option<bool>,
+    /// Why the trial failed (empty unless [`TrialRecorder::fail`] was called).
+    failures: Vec<String>,
 }
 
 impl TrialRecorder {
@@ -43,7 +45,20 @@ impl TrialRecorder {
             extra: Vec::new(),
             marks: Vec::new(),
             success: None,
+            failures: Vec::new(),
         }
+    }
+
+    /// Marks the trial failed, for `reason` (shown in the report); it stays failed whatever
+    /// [`TrialRecorder::set_success`] says.
+    pub fn fail(&mut self, reason: impl Into<String>) {
+        self.failures.push(reason.into());
+    }
+
+    /// The reasons given to [`TrialRecorder::fail`].
+    #[must_use]
+    pub fn failures(&self) -> &[String] {
+        &self.failures
     }
 
     /// Appends a true pose.
@@ -72,7 +87,8 @@ impl TrialRecorder {
         let ttg = self
             .goal
             .and_then(|(g, tol)| time_to_goal(&self.truth, &g, tol));
-        let success = self.success.unwrap_or(self.goal.is_none() || ttg.is_some());
+        let success = self.failures.is_empty()
+            && self.success.unwrap_or(self.goal.is_none() || ttg.is_some());
         TrialResult {
             trial: self.trial,
             seed: self.seed,
@@ -91,8 +107,9 @@ fn io(path: &Path) -> impl FnOnce(std::io::Error) -> SimError + '_ {
     }
 }
 
-/// Writes `dir/trial-NN/{truth.csv, estimate.csv, plot.svg}` and `dir/report.md`; returns the
-/// report.
+/// Writes `dir/trial-NN/{truth.csv, estimate.csv, plot.svg}`, `dir/report.md` and
+/// `dir/report.json`; returns the report. Published numbers appear only when the scenario is
+/// its seed's own experiment ([`Scenario::published_key`]).
 pub fn write_outputs(
     dir: &Path,
     scenario: &Scenario,
@@ -130,9 +147,31 @@ pub fn write_outputs(
         std::fs::write(&p, plot).map_err(io(&p))?;
         results.push(rec.finish());
     }
-    let report = Report::new(&scenario.spec.name, &Summary::from_trials(&results));
+    report_for(scenario, trials, &results, dir)
+}
+
+/// The report of finished trials, written to `dir/report.md` and `dir/report.json`.
+fn report_for(
+    scenario: &Scenario,
+    trials: &[TrialRecorder],
+    results: &[crate::metrics::TrialResult],
+    dir: &Path,
+) -> Result<Report, SimError> {
+    let (key, withheld) = match scenario.published_key() {
+        Ok(k) => (k, None),
+        Err(why) => (None, Some(why)),
+    };
+    let mut report = Report::new(&scenario.spec.name, key, &Summary::from_trials(results));
+    report.notes.extend(withheld);
+    report.outcomes = trials
+        .iter()
+        .zip(results)
+        .map(|(rec, r)| (rec.trial, rec.seed, r.success, rec.failures().to_vec()))
+        .collect();
     let p = dir.join("report.md");
     std::fs::write(&p, report.table()).map_err(io(&p))?;
+    let p = dir.join("report.json");
+    std::fs::write(&p, report.json()).map_err(io(&p))?;
     Ok(report)
 }
 
@@ -196,7 +235,15 @@ emitter = { x = 4.0, y = 0.0 }
         let report = write_outputs(&dir, &s, &recs).unwrap();
         assert_eq!(report.trials, 2);
         let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
-        assert!(md.contains("| time_to_goal | 8.7500 | 90.0000 |"), "{md}");
+        // Named like the seed's scenario but not its file: no published numbers.
+        assert!(md.contains("| time_to_goal | 8.7500 | — |"), "{md}");
+        assert!(md.contains("FAILED 1 of 2 trials"), "{md}");
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap())
+                .unwrap();
+        assert_eq!(json["metrics"]["time_to_goal"], 8.75);
+        assert_eq!(json["failures"], 1);
+        assert_eq!(json["outcomes"][1]["success"], false);
         let back = truth::read(&dir.join("trial-01/truth.csv")).unwrap();
         assert_eq!(back, recs[1].truth);
         assert!(std::fs::read_to_string(dir.join("trial-00/plot.svg"))

@@ -27,17 +27,22 @@ pub struct Report {
     pub source: String,
     pub trials: usize,
     pub rows: Vec<ReportRow>,
+    /// Lines printed under the table: failed trials and why, withheld published numbers.
+    pub notes: Vec<String>,
+    /// Per trial: `(trial, seed, success, reasons for failure)`.
+    pub outcomes: Vec<(usize, u64, bool, Vec<String>)>,
 }
 
 impl Report {
-    /// Joins a run summary with [`published::for_scenario`]: published metrics first (in the
-    /// seed's order), then rfloc-only metrics.
+    /// Joins a run summary of `scenario` with the published numbers of `published_key` (see
+    /// [`crate::Scenario::published_key`]; `None`: rfloc's numbers only): published metrics
+    /// first (in the seed's order), then rfloc-only metrics.
     #[must_use]
-    pub fn new(scenario: &str, summary: &Summary) -> Report {
+    pub fn new(scenario: &str, published_key: Option<&str>, summary: &Summary) -> Report {
         let ours = summary.metrics();
         let find = |k: &str| ours.iter().find(|(n, _)| n == k).map(|(_, v)| *v);
         let mut rows = Vec::new();
-        let pubd = published::for_scenario(scenario);
+        let pubd = published_key.and_then(published::for_scenario);
         if let Some(p) = pubd {
             for m in p.metrics {
                 rows.push(ReportRow {
@@ -63,7 +68,76 @@ impl Report {
             source: pubd.map_or_else(String::new, |p| p.source.to_string()),
             trials: summary.trials,
             rows,
+            notes: Vec::new(),
+            outcomes: Vec::new(),
         }
+    }
+
+    /// Number of trials that failed.
+    #[must_use]
+    pub fn failures(&self) -> usize {
+        self.outcomes.iter().filter(|o| !o.2).count()
+    }
+
+    /// The report as JSON: scenario, source, trials, every metric of the table under the same
+    /// name (`metrics`), the published values (`published`), per-trial outcomes and the notes.
+    #[must_use]
+    pub fn json(&self) -> String {
+        let num = |v: f64| {
+            if v.is_finite() {
+                format!("{v}")
+            } else {
+                "null".to_string()
+            }
+        };
+        let mut s = String::from("{\n");
+        let _ = writeln!(s, "  \"scenario\": {},", json_str(&self.scenario));
+        let _ = writeln!(s, "  \"published_source\": {},", json_str(&self.source));
+        let _ = writeln!(s, "  \"trials\": {},", self.trials);
+        let _ = writeln!(s, "  \"failures\": {},", self.failures());
+        let metrics: Vec<String> = self
+            .rows
+            .iter()
+            .filter_map(|r| {
+                r.rfloc
+                    .map(|v| format!("    {}: {}", json_str(&r.metric), num(v)))
+            })
+            .collect();
+        let _ = writeln!(s, "  \"metrics\": {{\n{}\n  }},", metrics.join(",\n"));
+        let published: Vec<String> = self
+            .rows
+            .iter()
+            .filter_map(|r| {
+                r.published.map(|p| {
+                    format!(
+                        "    {}: {}",
+                        json_str(&r.metric),
+                        p.map_or_else(|| "null".to_string(), num)
+                    )
+                })
+            })
+            .collect();
+        if published.is_empty() {
+            s.push_str("  \"published\": {},\n");
+        } else {
+            let _ = writeln!(s, "  \"published\": {{\n{}\n  }},", published.join(",\n"));
+        }
+        let outcomes: Vec<String> = self
+            .outcomes
+            .iter()
+            .map(|(trial, seed, ok, why)| {
+                let why: Vec<String> = why.iter().map(|w| json_str(w)).collect();
+                format!(
+                    "    {{ \"trial\": {trial}, \"seed\": {seed}, \"success\": {ok}, \"failures\": [{}] }}",
+                    why.join(", ")
+                )
+            })
+            .collect();
+        let _ = writeln!(s, "  \"outcomes\": [\n{}\n  ],", outcomes.join(",\n"));
+        let notes: Vec<String> = self.notes.iter().map(|n| json_str(n)).collect();
+        let _ = writeln!(s, "  \"notes\": [{}]", notes.join(", "));
+        s.push_str("}\n");
+        s
     }
 
     /// A plain-text table (Markdown pipe table).
@@ -100,8 +174,49 @@ impl Report {
                 r.note
             );
         }
+        let failed: Vec<String> = self
+            .outcomes
+            .iter()
+            .filter(|o| !o.2)
+            .map(|(trial, seed, _, why)| {
+                let why = if why.is_empty() {
+                    "goal not reached".to_string()
+                } else {
+                    why.join("; ")
+                };
+                format!("trial {trial} (seed {seed}): {why}")
+            })
+            .collect();
+        if !failed.is_empty() {
+            let _ = writeln!(s, "\nFAILED {} of {} trials:", failed.len(), self.trials);
+            for f in failed {
+                let _ = writeln!(s, "- {f}");
+            }
+        }
+        for n in &self.notes {
+            let _ = writeln!(s, "\nnote: {n}");
+        }
         s
     }
+}
+
+/// A JSON string literal.
+fn json_str(v: &str) -> String {
+    let mut out = String::with_capacity(v.len() + 2);
+    out.push('"');
+    for c in v.chars() {
+        match c {
+            '"' => out.push_str("\\\""),
+            '\\' => out.push_str("\\\\"),
+            '\n' => out.push_str("\\n"),
+            c if (c as u32) < 0x20 => {
+                let _ = write!(out, "\\u{:04x}", c as u32);
+            }
+            c => out.push(c),
+        }
+    }
+    out.push('"');
+    out
 }
 
 /// What to draw besides the world.
@@ -320,7 +435,7 @@ mod tests {
             success: true,
             extra: vec![("beacon_rmse_1_m".into(), 0.3)],
         };
-        let rep = Report::new("seed003-case1", &Summary::from_trials(&[r]));
+        let rep = Report::new("x", Some("seed003-case1"), &Summary::from_trials(&[r]));
         let t = rep.table();
         assert!(t.contains("Table 3.2"), "{t}");
         assert!(t.contains("| rmse_m | 0.5000 | 0.6900 | -0.1900 |"), "{t}");
@@ -329,7 +444,7 @@ mod tests {
             "{t}"
         );
         assert!(t.contains("| beacon_rmse_2_m | — | 0.3200 | — |"), "{t}");
-        let e = Report::new("seed001-e", &Summary::from_trials(&[]));
+        let e = Report::new("x", Some("seed001-e"), &Summary::from_trials(&[]));
         assert!(e
             .table()
             .contains("| time_to_goal_preliminary | — | not completed |"));

@@ -19,6 +19,9 @@ use crate::uhf::UhfModel;
 use crate::world::{World, WorldSpec};
 use crate::xbee::{RangeBearingNoise, XbeeModel};
 
+/// Step of the lock-step trials: the emulated Pioneer's SIP period, seconds.
+pub const SIP_PERIOD_S: f64 = 0.1;
+
 /// Which rfloc pipeline a scenario exercises.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -45,6 +48,12 @@ pub struct ScenarioSpec {
     /// Where the setup comes from (seed, section, table).
     #[serde(default)]
     pub source: String,
+    /// The seed scenario whose published numbers the report may show beside rfloc's (a key of
+    /// [`crate::published`]). They are shown only when this scenario is that seed's own
+    /// experiment (same world, robot, sensors and settings; see
+    /// [`Scenario::published_key`]); without it, none are shown.
+    #[serde(default)]
+    pub seed_reference: Option<String>,
     pub pipeline: Pipeline,
     /// A world file, relative to the scenario file. Exactly one of `world_file`/`world`.
     #[serde(default)]
@@ -69,6 +78,20 @@ pub struct ScenarioSpec {
     pub sensors: SensorSpec,
     #[serde(default)]
     pub params: PipelineParams,
+    /// `[mismatch]`: give the estimator a model that differs from the simulator's.
+    #[serde(default)]
+    pub mismatch: Option<MismatchSpec>,
+}
+
+/// `[mismatch]`: how the estimator's model differs from the simulator's.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MismatchSpec {
+    /// Scale of the estimator's signal-to-distance model: for any signal level it infers a
+    /// distance `scale` times the one the simulator's model gives (1.15 = ranges 15 % long).
+    /// Emitter: `A1` shifted by `10·A2·log10(scale)` dB; EKF-SLAM: `P_ref` shifted by
+    /// `10·η·log10(scale)` dB; HF: every RSSI band edge (cm) multiplied by `scale`.
+    pub scale: f64,
 }
 
 /// `[robot]`.
@@ -146,6 +169,10 @@ pub struct PipelineParams {
     /// Seed 003: reflector sweep steps per revolution (40 × 9°).
     #[serde(default)]
     pub sweep_steps: Option<usize>,
+    /// Seed 003: driving time between two reflector sweeps, seconds (the robot stops to
+    /// sweep; 3 s when absent).
+    #[serde(default)]
+    pub sweep_every_s: Option<f64>,
     /// Seed 003: waypoint switching distance ρ_min, metres.
     #[serde(default)]
     pub waypoint_switch_m: Option<f64>,
@@ -228,6 +255,100 @@ impl Scenario {
         if sp.name.trim().is_empty() {
             return Err(invalid(p, text, "name", "must not be empty"));
         }
+        // Every key written must be one the pipeline's trial acts on.
+        let table: toml::Table = toml::from_str(text).map_err(|e| from_toml(p, text, &e))?;
+        for key in crate::keys::written(&table) {
+            if !crate::keys::is_acting(sp.pipeline, &key) {
+                return Err(invalid(
+                    p,
+                    text,
+                    &key,
+                    crate::keys::why_not(sp.pipeline, &key),
+                ));
+            }
+        }
+        if let Some(r) = &sp.seed_reference {
+            if crate::published::for_scenario(r).is_none() {
+                return Err(invalid(
+                    p,
+                    text,
+                    "seed_reference",
+                    format!("`{r}` is not a seed scenario with published numbers"),
+                ));
+            }
+        }
+        if let Some(m) = sp.mismatch {
+            if !(m.scale.is_finite() && (0.2..=5.0).contains(&m.scale)) {
+                return Err(invalid(p, text, "mismatch.scale", "must be from 0.2 to 5"));
+            }
+        }
+        if sp.pipeline == Pipeline::HfInit {
+            let hf = self.hf_model();
+            let checks = [
+                (
+                    "spread_levels",
+                    hf.spread_levels >= 0.0 && hf.spread_levels <= 7.0,
+                ),
+                ("antenna_offset", (0.0..=0.5).contains(&hf.antenna_offset)),
+                (
+                    "miss_probability",
+                    (0.0..1.0).contains(&hf.miss_probability),
+                ),
+                (
+                    "placement_sigma_m",
+                    (0.0..=0.05).contains(&hf.placement_sigma_m),
+                ),
+            ];
+            if let Some((key, _)) = checks.iter().find(|(_, ok)| !ok) {
+                return Err(invalid(
+                    p,
+                    text,
+                    &format!("sensors.hf.{key}"),
+                    "out of range (spread 0–7 levels, offset 0–0.5 m, miss 0–1, placement 0–0.05 m)",
+                ));
+            }
+            if let Some(n) = sp.params.readings_per_turn {
+                if !(3..=360).contains(&n) {
+                    return Err(invalid(
+                        p,
+                        text,
+                        "params.readings_per_turn",
+                        "must be from 3 to 360",
+                    ));
+                }
+            }
+        }
+        if let Some(v) = sp.params.sweep_every_s {
+            if !(v.is_finite() && (0.5..=600.0).contains(&v)) {
+                return Err(invalid(
+                    p,
+                    text,
+                    "params.sweep_every_s",
+                    "must be from 0.5 to 600 s",
+                ));
+            }
+        }
+        let d = &sp.robot.drive;
+        if sp.pipeline == Pipeline::EkfSlam {
+            for (key, v) in [
+                ("axle_track", d.axle_track),
+                ("wheel_diameter", d.wheel_diameter),
+                ("body_radius", d.body_radius),
+            ] {
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(invalid(p, text, key, "must be positive"));
+                }
+            }
+            for (key, v) in [
+                ("sigma_v", d.sigma_v),
+                ("sigma_omega", d.sigma_omega),
+                ("slip_sigma", d.slip_sigma),
+            ] {
+                if !(v.is_finite() && v >= 0.0) {
+                    return Err(invalid(p, text, key, "must be zero or positive"));
+                }
+            }
+        }
         if !(sp.dt_s.is_finite() && sp.dt_s > 0.0) {
             return Err(invalid(p, text, "dt_s", "must be positive"));
         }
@@ -236,6 +357,19 @@ impl Scenario {
         }
         if sp.trials == 0 {
             return Err(invalid(p, text, "trials", "must be at least 1"));
+        }
+        // The lock-step trials step at the emulated Pioneer's SIP period; only the snapshot
+        // trial takes its action duration from `dt_s`.
+        if sp.pipeline != Pipeline::Snapshot && (sp.dt_s - SIP_PERIOD_S).abs() > 1e-9 {
+            return Err(invalid(
+                p,
+                text,
+                "dt_s",
+                format!(
+                    "the {} trial steps at the emulated Pioneer's SIP period: dt_s must be {SIP_PERIOD_S}",
+                    crate::keys::pipeline_name(sp.pipeline)
+                ),
+            ));
         }
         let st = sp.robot.start;
         let r = sp.robot.drive.body_radius;
@@ -258,6 +392,29 @@ impl Scenario {
                     "goal must be inside the area with a positive tolerance",
                 ));
             }
+            if !g.random && self.world.inside_obstacle(&Point::new(g.x, g.y)) {
+                return Err(invalid(
+                    p,
+                    text,
+                    "goal",
+                    format!("({}, {}) is inside an obstacle", g.x, g.y),
+                ));
+            }
+        }
+        let needs_goal = matches!(
+            sp.pipeline,
+            Pipeline::Snapshot | Pipeline::EmitterPreliminary | Pipeline::EmitterFull
+        );
+        if needs_goal && sp.goal.is_none() {
+            return Err(invalid(
+                p,
+                text,
+                "goal",
+                format!(
+                    "the {} trial needs a [goal] (what counts as arrival)",
+                    crate::keys::pipeline_name(sp.pipeline)
+                ),
+            ));
         }
         if let Some(w) = sp.waypoints.iter().find(|w| !self.in_area(w[0], w[1])) {
             return Err(invalid(
@@ -265,6 +422,18 @@ impl Scenario {
                 text,
                 "waypoints",
                 format!("{w:?} is outside the area"),
+            ));
+        }
+        if let Some(w) = sp
+            .waypoints
+            .iter()
+            .find(|w| self.world.inside_obstacle(&Point::new(w[0], w[1])))
+        {
+            return Err(invalid(
+                p,
+                text,
+                "waypoints",
+                format!("{w:?} is inside an obstacle"),
             ));
         }
         match sp.pipeline {
@@ -303,6 +472,49 @@ impl Scenario {
             && x <= self.world.area_max.x
             && y >= self.world.area_min.y
             && y <= self.world.area_max.y
+    }
+
+    /// The key of [`crate::published`] whose numbers the report may show: the scenario's
+    /// `seed_reference`, if the scenario is that seed's own experiment, i.e. its
+    /// [`Scenario::fingerprint`] equals the one recorded for the seed's file (a copy with
+    /// another world, noise or setting gets none). `Err` carries the reason they are withheld.
+    pub fn published_key(&self) -> Result<Option<&'static str>, String> {
+        let Some(r) = &self.spec.seed_reference else {
+            return Ok(None);
+        };
+        let Some(p) = crate::published::for_scenario(r) else {
+            return Err(format!("`{r}` has no published numbers"));
+        };
+        let f = self.fingerprint();
+        if f == p.fingerprint {
+            Ok(Some(p.scenario))
+        } else {
+            Err(format!(
+                "this scenario is not {r}'s own experiment (fingerprint {f:016x}, the seed's \
+                 file {:016x}): its published numbers are not shown",
+                p.fingerprint
+            ))
+        }
+    }
+
+    /// A 64-bit FNV-1a hash of what the experiment is: the resolved world and every scenario
+    /// setting except its name, description, source, seed reference, base seed and trial
+    /// count. Two files describing the same experiment have the same fingerprint.
+    #[must_use]
+    pub fn fingerprint(&self) -> u64 {
+        let mut spec = self.spec.clone();
+        spec.name.clear();
+        spec.description.clear();
+        spec.source.clear();
+        spec.seed_reference = None;
+        spec.seed = 0;
+        spec.trials = 1;
+        spec.world = None;
+        spec.world_file = None;
+        let text = format!("{spec:?}\n{:?}", self.world);
+        text.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| {
+            (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+        })
     }
 
     /// Seed of trial `i` (base seed + i).

@@ -179,6 +179,10 @@ trials = 2
 seed = 9
 [robot]
 start = { x = 1.0, y = 1.0 }
+[goal]
+x = 2.0
+y = 2.0
+tolerance_m = 0.4
 [world]
 area = { min = [0.0, 0.0], max = [4.0, 4.0] }
 uhf_tags = { random = { count = 200, seed = 3 } }

@@ -349,6 +349,50 @@ impl World {
         if let Some(g) = &spec.hf_grid {
             world.resolve_hf_grid(g, text, path)?;
         }
+        let inside = |x: f64, y: f64| {
+            x.is_finite()
+                && y.is_finite()
+                && x >= min[0]
+                && x <= max[0]
+                && y >= min[1]
+                && y <= max[1]
+        };
+        let value_line = |value: &str, key: &str| {
+            let l = find_value_line(text, value);
+            if l > 0 {
+                l
+            } else {
+                find_key_line(text, key)
+            }
+        };
+        for t in &world.uhf_tags {
+            if !inside(t.position.x, t.position.y) {
+                return Err(SimError::Invalid {
+                    path: path.to_path_buf(),
+                    line: value_line(&t.epc, "uhf_tags.tags"),
+                    key: "uhf_tags.tags".to_string(),
+                    message: format!(
+                        "tag {} at ({}, {}) is outside the area",
+                        t.epc, t.position.x, t.position.y
+                    ),
+                });
+            }
+        }
+        if let Some(t) = world
+            .hf_tags
+            .iter()
+            .find(|t| !inside(t.position.x, t.position.y))
+        {
+            return Err(invalid(
+                path,
+                text,
+                "hf_grid",
+                format!(
+                    "tag (row {}, column {}) at ({:.3}, {:.3}) is outside the area",
+                    t.row, t.col, t.position.x, t.position.y
+                ),
+            ));
+        }
         for b in &spec.xbee_beacons {
             let address = parse_hex_u64(&b.address).ok_or_else(|| {
                 invalid(
@@ -358,6 +402,40 @@ impl World {
                     format!("`{}` is not a 64-bit hex address", b.address),
                 )
             })?;
+            let located = |message: String| SimError::Invalid {
+                path: path.to_path_buf(),
+                line: value_line(&b.address, "xbee_beacons.address"),
+                key: "xbee_beacons.address".to_string(),
+                message,
+            };
+            if world.beacons.iter().any(|o| o.address == address) {
+                let earlier = spec
+                    .xbee_beacons
+                    .iter()
+                    .take_while(|o| !std::ptr::eq(*o, b))
+                    .filter(|o| o.address == b.address)
+                    .count();
+                let line = find_value_line_nth(text, &b.address, earlier);
+                return Err(SimError::Invalid {
+                    path: path.to_path_buf(),
+                    line: if line > 0 {
+                        line
+                    } else {
+                        find_key_line(text, "xbee_beacons.address")
+                    },
+                    key: "xbee_beacons.address".to_string(),
+                    message: format!(
+                        "`{}` is the address of an earlier beacon; every beacon needs its own",
+                        b.address
+                    ),
+                });
+            }
+            if !inside(b.x, b.y) {
+                return Err(located(format!(
+                    "beacon `{}` at ({}, {}) is outside the area",
+                    b.address, b.x, b.y
+                )));
+            }
             world.beacons.push(XbeeBeacon {
                 address,
                 ni: b.ni.clone(),
@@ -365,6 +443,22 @@ impl World {
             });
         }
         if let Some(e) = &spec.emitter {
+            if !inside(e.x, e.y) {
+                return Err(invalid(
+                    path,
+                    text,
+                    "emitter",
+                    format!("({}, {}) is outside the area", e.x, e.y),
+                ));
+            }
+            if world.inside_obstacle(&Point::new(e.x, e.y)) {
+                return Err(invalid(
+                    path,
+                    text,
+                    "emitter",
+                    format!("({}, {}) is inside an obstacle", e.x, e.y),
+                ));
+            }
             world.emitter = Some(Emitter {
                 position: Point::new(e.x, e.y),
                 power_dbm: e.power_dbm,
@@ -489,6 +583,21 @@ impl World {
                 Some(best.map_or(d, |b| b.min(d)))
             })
     }
+}
+
+/// 1-based line on which the quoted string `value` first appears, 0 when absent.
+fn find_value_line(text: &str, value: &str) -> usize {
+    find_value_line_nth(text, value, 0)
+}
+
+/// 1-based line of the `n`-th (from 0) appearance of the quoted string `value`, 0 when absent.
+fn find_value_line_nth(text: &str, value: &str, n: usize) -> usize {
+    let quoted = format!("\"{value}\"");
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| l.contains(&quoted))
+        .nth(n)
+        .map_or(0, |(i, _)| i + 1)
 }
 
 fn parse_hex_u128_ok(s: &str) -> Option<()> {

@@ -23,6 +23,7 @@ fn load(name: &str) -> Scenario {
 #[test]
 fn every_scenario_file_loads_and_validates() {
     let mut names = Vec::new();
+    let mut fingerprints = Vec::new();
     for entry in std::fs::read_dir(scenarios_dir()).unwrap() {
         let p = entry.unwrap().path();
         if p.extension().is_some_and(|e| e == "toml") {
@@ -32,17 +33,25 @@ fn every_scenario_file_loads_and_validates() {
                 p.file_stem().and_then(|s| s.to_str()),
                 "name must match the file name"
             );
-            assert!(
-                rfloc_sim::published::for_scenario(&s.spec.name).is_some(),
-                "{} has no published numbers",
-                s.spec.name
-            );
+            // The seeds' own files carry their published numbers; nothing else does.
+            let key = s
+                .published_key()
+                .unwrap_or_else(|e| panic!("{}: {e}", s.spec.name));
+            if s.spec.name.starts_with("seed") {
+                assert_eq!(key, Some(s.spec.name.as_str()), "{}", s.spec.name);
+                fingerprints.push(format!("{} {:#018x}", s.spec.name, s.fingerprint()));
+            } else {
+                assert_eq!(key, None, "{}", s.spec.name);
+            }
             names.push(s.spec.name);
         }
     }
     names.sort();
+    fingerprints.sort();
+    println!("{}", fingerprints.join("\n"));
+    let seeds: Vec<&String> = names.iter().filter(|n| n.starts_with("seed")).collect();
     assert_eq!(
-        names,
+        seeds,
         [
             "seed000-sim",
             "seed001-a",
@@ -56,10 +65,39 @@ fn every_scenario_file_loads_and_validates() {
             "seed003-case2"
         ]
     );
+    assert!(
+        names.iter().any(|n| n.starts_with("facility-")),
+        "{names:?}"
+    );
     for entry in std::fs::read_dir(scenarios_dir().join("worlds")).unwrap() {
         let p = entry.unwrap().path();
         World::load(&p).unwrap_or_else(|e| panic!("{e}"));
     }
+}
+
+/// A copy of a seed's scenario with one setting changed is not the seed's experiment: its
+/// report shows no published numbers, and says why.
+#[test]
+fn a_changed_copy_of_a_seed_file_gets_no_published_numbers() {
+    let path = scenarios_dir().join("seed003-case1.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let same = Scenario::from_toml_str(&text.replace("trials = 10", "trials = 2"), &path).unwrap();
+    assert_eq!(same.published_key().unwrap(), Some("seed003-case1"));
+    let changed = Scenario::from_toml_str(&text.replace("eta = 2.0", "eta = 2.2"), &path).unwrap();
+    let why = changed.published_key().unwrap_err();
+    assert!(why.contains("not seed003-case1's own experiment"), "{why}");
+    let renamed = Scenario::from_toml_str(
+        &text.replace("name = \"seed003-case1\"", "name = \"my-copy\""),
+        &path,
+    )
+    .unwrap();
+    assert_eq!(renamed.published_key().unwrap(), Some("seed003-case1"));
+    let unreferenced = Scenario::from_toml_str(
+        &text.replace("seed_reference = \"seed003-case1\"\n", ""),
+        &path,
+    )
+    .unwrap();
+    assert_eq!(unreferenced.published_key().unwrap(), None);
 }
 
 #[test]
@@ -228,7 +266,7 @@ fn same_seed_same_run_and_report() {
         success: true,
         extra: vec![],
     }]);
-    let table = Report::new("seed003-case1", &summary).table();
+    let table = Report::new("seed003-case1", Some("seed003-case1"), &summary).table();
     assert!(table.contains("| rmse_m |") && table.contains("0.6900"));
     let plot = svg(
         &s.world,

@@ -17,6 +17,8 @@ pub mod error;
 pub mod localization;
 pub mod messages;
 pub mod parse;
+#[cfg(feature = "schema")]
+pub mod schema;
 pub mod time;
 pub mod topic;
 pub mod vehicle;

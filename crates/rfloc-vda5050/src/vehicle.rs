@@ -472,6 +472,20 @@ impl Vehicle {
         result
     }
 
+    /// Rejects `order` for a reason the caller found (e.g. `noRouteError` from a vehicle whose
+    /// localiser cannot drive): the error goes into `state.errors` like the vehicle's own
+    /// rejections, with the order's references, and the current order goes on unchanged.
+    pub fn reject_order(
+        &mut self,
+        order: &Order,
+        kind: ErrorKind,
+        description: impl Into<String>,
+    ) -> Vda5050Error {
+        let e = Self::reject(kind, order, description.into());
+        self.record_rejection(&e);
+        e
+    }
+
     fn refs(order: &Order) -> [Reference; 3] {
         [
             Reference::new("headerId", order.header.header_id.to_string()),

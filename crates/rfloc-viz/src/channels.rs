@@ -5,7 +5,7 @@ use foxglove::messages::{
 };
 use foxglove::Encode;
 
-use crate::convert::LinkBytes;
+use crate::convert::{LinkBytes, Observation};
 use crate::topics;
 
 /// Index of a channel in [`table`]; the protocol's channel id is this plus one.
@@ -23,10 +23,11 @@ pub(crate) enum Ch {
     Scan,
     Status,
     Link,
+    Observation,
 }
 
 impl Ch {
-    const ALL: [Ch; 12] = [
+    const ALL: [Ch; 13] = [
         Ch::Pose,
         Ch::PoseCovariance,
         Ch::PoseEllipse,
@@ -39,6 +40,7 @@ impl Ch {
         Ch::Scan,
         Ch::Status,
         Ch::Link,
+        Ch::Observation,
     ];
 
     pub(crate) fn index(self) -> usize {
@@ -91,6 +93,7 @@ pub(crate) fn table() -> Vec<ChannelInfo> {
         info::<LaserScan>(topics::SCAN),
         info::<Log>(topics::STATUS),
         info::<LinkBytes>(topics::LINK),
+        info::<Observation>(topics::OBSERVATION),
     ]
 }
 

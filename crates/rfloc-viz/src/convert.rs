@@ -400,6 +400,26 @@ pub(crate) fn link_bytes(
     }
 }
 
+/// The custom message of [`crate::topics::OBSERVATION`]: protobuf `observation.Observation` with
+/// fields `timestamp` (1), `device` (string, 2), `kind` (string, 3) and `json` (string, 4).
+#[derive(foxglove::Encode)]
+#[allow(clippy::struct_field_names)]
+pub(crate) struct Observation {
+    pub(crate) timestamp: Timestamp,
+    pub(crate) device: String,
+    pub(crate) kind: String,
+    pub(crate) json: String,
+}
+
+pub(crate) fn observation(stamp: Stamp, device: &str, kind: &str, json: &str) -> Observation {
+    Observation {
+        timestamp: stamp.timestamp(),
+        device: device.to_string(),
+        kind: kind.to_string(),
+        json: json.to_string(),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

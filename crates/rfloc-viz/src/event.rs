@@ -132,6 +132,13 @@ pub enum VizEvent {
         direction: Direction,
         bytes: Vec<u8>,
     },
+    /// A decoded device observation ([`crate::topics::OBSERVATION`], `observation.Observation`).
+    Observation {
+        stamp: Stamp,
+        device: String,
+        kind: String,
+        json: String,
+    },
 }
 
 impl VizEvent {
@@ -147,7 +154,8 @@ impl VizEvent {
             | VizEvent::Particles { stamp, .. }
             | VizEvent::Scan { stamp, .. }
             | VizEvent::Status { stamp, .. }
-            | VizEvent::LinkBytes { stamp, .. } => *stamp,
+            | VizEvent::LinkBytes { stamp, .. }
+            | VizEvent::Observation { stamp, .. } => *stamp,
         }
     }
 }

@@ -34,9 +34,12 @@ pub const PARTICLES: &str = "/rfloc/particles";
 pub const SCAN: &str = "/rfloc/scan";
 pub const STATUS: &str = "/rfloc/status";
 pub const LINK: &str = "/rfloc/link";
+/// A decoded device observation (`observation.Observation`: time, device, kind and the observation as
+/// JSON).
+pub const OBSERVATION: &str = "/rfloc/observation";
 
 /// Every topic, in the order of the table above.
-pub const ALL: [&str; 12] = [
+pub const ALL: [&str; 13] = [
     POSE,
     POSE_COVARIANCE,
     POSE_ELLIPSE,
@@ -49,4 +52,5 @@ pub const ALL: [&str; 12] = [
     SCAN,
     STATUS,
     LINK,
+    OBSERVATION,
 ];

@@ -132,6 +132,12 @@ impl Viz {
                 direction,
                 bytes,
             } => self.link_bytes(*stamp, device, *direction, bytes),
+            VizEvent::Observation {
+                stamp,
+                device,
+                kind,
+                json,
+            } => self.observation(*stamp, device, kind, json),
         }
     }
 
@@ -215,6 +221,14 @@ impl Viz {
     pub fn link_bytes(&self, stamp: Stamp, device: &str, direction: Direction, bytes: &[u8]) {
         self.hub.deliver(Ch::Link, stamp, || {
             convert::link_bytes(stamp, device, direction, bytes)
+        });
+    }
+
+    /// A decoded device observation: its kind (`odometry`, `hf_tag`, …) and the observation as
+    /// one JSON object.
+    pub fn observation(&self, stamp: Stamp, device: &str, kind: &str, json: &str) {
+        self.hub.deliver(Ch::Observation, stamp, || {
+            convert::observation(stamp, device, kind, json)
         });
     }
 }

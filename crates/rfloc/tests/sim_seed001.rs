@@ -84,3 +84,38 @@ fn scenario_a_reaches_the_emitter_and_records_the_pioneer_link() {
         );
     }
 }
+
+/// The reported facility-scale failure: an emitter 9.5 m away in plain sight lay outside the
+/// fixed 12 m map, the navigator parked at the map's edge and declared arrival. The map grows
+/// now, and the trial reaches the emitter.
+#[test]
+fn an_emitter_9_5_m_away_is_reached() {
+    let out = tempfile::tempdir().unwrap();
+    let run = Command::new(env!("CARGO_BIN_EXE_rfloc"))
+        .current_dir(workspace())
+        .args([
+            "sim",
+            "scenarios/facility-emitter-sight95.toml",
+            "--trials",
+            "1",
+            "-o",
+        ])
+        .arg(out.path())
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{stdout}\n{stderr}");
+    let report = std::fs::read_to_string(out.path().join("report.md")).unwrap();
+    assert!(report.contains("| successes | 1.0000 |"), "{report}");
+    let truth = std::fs::read_to_string(out.path().join("trial-00/truth.csv")).unwrap();
+    let last: Vec<f64> = truth
+        .lines()
+        .last()
+        .unwrap()
+        .split(',')
+        .map(|v| v.parse().unwrap())
+        .collect();
+    let d = (last[1] - 9.5).hypot(last[2]);
+    assert!(d <= 0.5, "ended {d:.2} m from the emitter: {last:?}");
+}

@@ -46,3 +46,62 @@ fn seed002_trial_initialises_within_the_targets() {
     assert!(value("init_error_m") <= 0.010, "{stdout}");
     assert!(value("init_theta_error_deg") <= 5.0, "{stdout}");
 }
+
+/// Every `[sensors] hf` knob and `readings_per_turn` changes what the devices report: the
+/// reader's RSSI spread, the curve, misses and tag placement show in `kts.cap`, the number of
+/// stops in `pioneer.cap`.
+#[test]
+fn hf_knobs_and_readings_per_turn_act() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let text = std::fs::read_to_string(root.join("scenarios/seed002-3x3.toml")).unwrap();
+    let base = "hf = { curve = \"blind-spot\", spread_levels = 0.35, antenna_offset = 0.10, miss_probability = 0.1, placement_sigma_m = 0.003 }";
+    assert!(text.contains(base), "scenario changed");
+    let tmp = tempfile::tempdir().unwrap();
+    let run = |tag: &str, hf: &str, per_turn: &str| -> (Vec<u8>, Vec<u8>) {
+        let t = text
+            .replace(base, hf)
+            .replace("readings_per_turn = 8", per_turn);
+        let path = tmp.path().join(format!("{tag}.toml"));
+        std::fs::write(&path, t).unwrap();
+        let out = tmp.path().join(tag);
+        let o = Command::new(env!("CARGO_BIN_EXE_rfloc"))
+            .arg("sim")
+            .arg(&path)
+            .args(["--trials", "1", "--allow-failures", "-o"])
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let read = |f: &str| {
+            rfloc_capture::Capture::from_path(&out.join("trial-00").join(f))
+                .unwrap()
+                .rx_bytes()
+        };
+        (read("kts.cap"), read("pioneer.cap"))
+    };
+    let (kts, pioneer) = run("base", base, "readings_per_turn = 8");
+    for (tag, hf) in [
+        (
+            "spread",
+            base.replace("spread_levels = 0.35", "spread_levels = 1.5"),
+        ),
+        ("curve", base.replace("blind-spot", "monotonic")),
+        (
+            "miss",
+            base.replace("miss_probability = 0.1", "miss_probability = 0.5"),
+        ),
+        (
+            "placement",
+            base.replace("placement_sigma_m = 0.003", "placement_sigma_m = 0.02"),
+        ),
+        (
+            "offset",
+            base.replace("antenna_offset = 0.10", "antenna_offset = 0.05"),
+        ),
+    ] {
+        let (k, _) = run(tag, &hf, "readings_per_turn = 8");
+        assert_ne!(k, kts, "{tag} did not change the reader's reports");
+    }
+    let (_, p) = run("stops", base, "readings_per_turn = 4");
+    assert_ne!(p, pioneer, "readings_per_turn did not change the turn");
+}

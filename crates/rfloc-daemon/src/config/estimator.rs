@@ -124,6 +124,7 @@ pub(crate) struct EstimatorEnv<'a> {
 fn check_hfgrid(h: &HfGridSettings, c: &mut Checks<'_, '_>, env: &EstimatorEnv<'_>) {
     c.range("pitch_m", h.pitch_m, 0.01, 10.0, " m");
     c.range("antenna_offset_m", h.antenna_offset_m, -1.0, 1.0, " m");
+    c.range("rssi_distance_scale", h.rssi_distance_scale, 0.2, 5.0, "");
     for (i, t) in h.tags.iter().enumerate() {
         let mut tc = c.nested(&format!("tag[{i}]"));
         if t.uid.trim().is_empty()
@@ -176,6 +177,18 @@ fn check_ekfslam(e: &EkfSlamSettings, c: &mut Checks<'_, '_>) {
         e.beacon_init_max_std_m,
         1000.0,
         " m",
+    );
+    c.positive(
+        "beacon_init_max_relative_std",
+        e.beacon_init_max_relative_std,
+        10.0,
+        "",
+    );
+    c.count(
+        "beacon_init_relax_after_views",
+        e.beacon_init_relax_after_views as u64,
+        0,
+        10_000,
     );
     c.positive("waypoint_switch_m", e.waypoint_switch_m, 100.0, " m");
     c.positive("max_speed_mps", e.max_speed_mps, 2.0, " m/s");
@@ -270,20 +283,31 @@ fn check_emitter(e: &EmitterSettings, c: &mut Checks<'_, '_>) {
     c.positive("path_loss_exponent", e.path_loss_exponent, 10.0, "");
     c.positive("grid_cell_m", e.grid_cell_m, 10.0, " m");
     c.positive("map_side_m", e.map_side_m, 10_000.0, " m");
+    c.positive("map_max_side_m", e.map_max_side_m, 10_000.0, " m");
     c.positive("control_period_s", e.control_period_s, 60.0, " s");
     c.positive("reading_window_s", e.reading_window_s, 3600.0, " s");
     c.positive("obstacle_distance_m", e.obstacle_distance_m, 100.0, " m");
     c.positive("arrival_distance_m", e.arrival_distance_m, 100.0, " m");
     c.positive("drive_speed_mps", e.drive_speed_mps, 2.0, " m/s");
+    c.positive("arrival_max_sigma_m", e.arrival_max_sigma_m, 1000.0, " m");
+    if let Some(v) = e.receiver_sensitivity_dbm {
+        c.range("receiver_sensitivity_dbm", v, -150.0, 30.0, " dBm");
+    }
     c.range("a1_dbm_at_1m", e.a1_dbm_at_1m, -150.0, 30.0, " dBm");
     for (i, v) in e.start.iter().enumerate() {
         c.range(&format!("start[{i}]"), *v, -1e6, 1e6, "");
     }
     c.count("particles", e.particles as u64, 1, 1_000_000);
-    if e.map_side_m / e.grid_cell_m > 20_000.0 {
+    if e.map_side_m / e.grid_cell_m > 8_000.0 {
         c.error(
             "map_side_m",
-            "more than 20000 cells a side: use a larger grid_cell_m",
+            "more than 8000 cells a side: use a larger grid_cell_m",
+        );
+    }
+    if e.map_max_side_m / e.grid_cell_m > 8_000.0 {
+        c.error(
+            "map_max_side_m",
+            "more than 8000 cells a side (64e6 cells): use a larger grid_cell_m",
         );
     }
 }
@@ -309,9 +333,15 @@ pub struct EmitterSettings {
     /// Occupancy grid cell side, metres (seed: 0.2).
     #[serde(default = "default_cell")]
     pub grid_cell_m: f64,
-    /// Side of the square map centred on the start, metres.
+    /// Initial side of the square map centred on the start, metres. The map is not limited to
+    /// it: it grows (in chunks of 32 cells) to hold every scan and the emitter estimate, up to
+    /// `map_max_side_m`. (Before maps grew, this was the map's fixed size.)
     #[serde(default = "default_map_side")]
     pub map_side_m: f64,
+    /// Largest map the growth may reach, as the side of a square of the same cell count,
+    /// metres (default 400 m: 4 million cells of 20 cm; never less than `map_side_m`).
+    #[serde(default = "default_map_max_side")]
+    pub map_max_side_m: f64,
     /// Seconds between control steps (filter update and command).
     #[serde(default = "default_control_period")]
     pub control_period_s: f64,
@@ -327,6 +357,15 @@ pub struct EmitterSettings {
     /// Forward speed, m/s.
     #[serde(default = "default_drive_speed")]
     pub drive_speed_mps: f64,
+    /// Arrival is declared only while the filtered estimate's spread (square root of its
+    /// covariance's largest eigenvalue) is at most this, metres; nearer a vaguer estimate the
+    /// robot turns on the spot and keeps measuring.
+    #[serde(default = "default_arrival_sigma")]
+    pub arrival_max_sigma_m: f64,
+    /// A receiver whose poll went unanswered reads as this level (its sensitivity, dBm) when
+    /// at least two of the four heard the emitter; unset: a step needs all four readings.
+    #[serde(default)]
+    pub receiver_sensitivity_dbm: Option<f64>,
     /// Seed of the particle filter's generator.
     #[serde(default)]
     pub seed: u64,
@@ -345,6 +384,12 @@ fn default_cell() -> f64 {
 }
 fn default_map_side() -> f64 {
     12.0
+}
+fn default_arrival_sigma() -> f64 {
+    1.0
+}
+fn default_map_max_side() -> f64 {
+    400.0
 }
 fn default_control_period() -> f64 {
     0.2
@@ -382,6 +427,10 @@ pub struct HfGridSettings {
     /// simulator's HF reader emulates). Only for simulations and for that test floor.
     #[serde(default)]
     pub tag_field: Option<String>,
+    /// Scale of the reader's RSSI-to-distance calibration: every band edge of seed 002's
+    /// table is multiplied by this (1: the table as measured).
+    #[serde(default = "default_one")]
+    pub rssi_distance_scale: f64,
 }
 impl Default for HfGridSettings {
     fn default() -> Self {
@@ -391,8 +440,13 @@ impl Default for HfGridSettings {
             tags: Vec::new(),
             tag_map: None,
             tag_field: None,
+            rssi_distance_scale: 1.0,
         }
     }
+}
+
+fn default_one() -> f64 {
+    1.0
 }
 
 fn default_pitch() -> f64 {
@@ -454,6 +508,14 @@ pub struct EkfSlamSettings {
     /// bearing, and the delayed initialisation triangulates from both (false: bearings only).
     #[serde(default)]
     pub beacon_init_with_range: bool,
+    /// Once a beacon not yet mapped has this many views, it is also mapped when its
+    /// triangulated position's largest σ is at most `beacon_init_max_relative_std` times its
+    /// distance (far beacons seen from a short stretch of route; 0: never).
+    #[serde(default)]
+    pub beacon_init_relax_after_views: usize,
+    /// The relative σ bound of `beacon_init_relax_after_views` (dimensionless).
+    #[serde(default = "default_relative_std")]
+    pub beacon_init_max_relative_std: f64,
     /// Keep each view's robot pose in the filter state until the beacon is mapped, so it enters
     /// the map with its cross-covariances to those poses (false: the views' poses are taken as
     /// exact and the beacon is attached to the current pose).
@@ -488,6 +550,16 @@ pub struct WheelSlipSettings {
     pub track_m: f64,
     /// Interval of one draw, seconds.
     pub interval_s: f64,
+    /// σ of an additive error of the driven speed, m/s, on every increment in which the
+    /// wheels turned (seed 003 Table 3.1's σ_v; default 0).
+    #[serde(default)]
+    pub sigma_v_mps: f64,
+    /// σ of an additive error of the turn rate, rad/s, likewise (Table 3.1's σ_ω; default 0).
+    #[serde(default)]
+    pub sigma_omega_rps: f64,
+}
+fn default_relative_std() -> f64 {
+    0.25
 }
 fn default_odometry_rot_per_m() -> f64 {
     0.01
@@ -507,6 +579,8 @@ impl Default for EkfSlamSettings {
             rssi_sigma_db: default_rssi_sigma(),
             bearing_floor_deg: default_bearing_floor(),
             beacon_init_max_std_m: default_beacon_init_std(),
+            beacon_init_relax_after_views: 0,
+            beacon_init_max_relative_std: default_relative_std(),
             beacon_init_with_range: false,
             beacon_init_pose_copies: false,
             antenna_pattern: None,

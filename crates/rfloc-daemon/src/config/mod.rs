@@ -3,6 +3,7 @@
 //!
 //! - [`diag`]: errors located by spans, and the range checks every section uses;
 //! - [`sections`]: `[robot]`, `[pose]`, `[log]`, `[state]`;
+//! - [`fleet`]: `[fleet]`, the robot as a VDA 5050 vehicle over MQTT;
 //! - [`estimator`]: `[estimator]`, one settings type per pipeline;
 //! - each device's `[device.driver]` is parsed and checked by its kind in the driver registry
 //!   ([`crate::devices::REGISTRY`]), next to the driver.
@@ -12,6 +13,7 @@
 
 mod diag;
 mod estimator;
+mod fleet;
 mod sections;
 
 use std::path::{Path, PathBuf};
@@ -29,7 +31,10 @@ pub use estimator::{
     EkfSlamSettings, EmitterSettings, EstimatorConfig, GridTag, HfGridSettings, SnapshotSettings,
     WheelSlipSettings, PIPELINES,
 };
-pub use sections::{LogConfig, PoseOutputConfig, RobotSection, StateConfig, SupervisionConfig};
+pub use fleet::{read_password, FleetConfig};
+pub use sections::{
+    FoxgloveConfig, LogConfig, PoseOutputConfig, RobotSection, StateConfig, SupervisionConfig,
+};
 
 pub use crate::devices::alien::AlienSettings;
 pub use crate::devices::aria::AriaSettings;
@@ -51,6 +56,9 @@ pub struct RobotConfig {
     pub log: LogConfig,
     pub state: StateConfig,
     pub supervision: SupervisionConfig,
+    pub foxglove: FoxgloveConfig,
+    /// `[fleet]`: a VDA 5050 fleet manager over MQTT, when the robot has one.
+    pub fleet: Option<FleetConfig>,
     /// Present in simulation configs: devices are emulated (by the lab) on ptys and loopback
     /// sockets. The daemon only knows that the section is there.
     pub simulation: bool,
@@ -127,6 +135,8 @@ const SECTIONS: &[&str] = &[
     "log",
     "state",
     "supervision",
+    "foxglove",
+    "fleet",
 ];
 
 impl RobotConfig {
@@ -208,6 +218,9 @@ struct Parts {
     log: Option<LogConfig>,
     state: Option<StateConfig>,
     supervision: Option<SupervisionConfig>,
+    foxglove: Option<FoxgloveConfig>,
+    /// `Some(None)`: no `[fleet]` section; `None`: one that did not parse.
+    fleet: Option<Option<FleetConfig>>,
     simulation: bool,
 }
 
@@ -256,6 +269,12 @@ impl Parts {
         if let Some(s) = &self.supervision {
             s.check(&mut Checks::new(diag, "supervision"));
         }
+        if let Some(f) = &self.foxglove {
+            f.check(&mut Checks::new(diag, "foxglove"));
+        }
+        if let Some(Some(f)) = &self.fleet {
+            f.check(&mut Checks::new(diag, "fleet"), &env);
+        }
     }
 
     fn assemble(self, text: &str, file: &str, dir: Option<&Path>) -> Option<RobotConfig> {
@@ -267,6 +286,8 @@ impl Parts {
             log: self.log?,
             state: self.state?,
             supervision: self.supervision?,
+            foxglove: self.foxglove?,
+            fleet: self.fleet?,
             simulation: self.simulation,
             source: Arc::new(ConfigSource {
                 file: file.to_string(),
@@ -374,6 +395,8 @@ fn parse_root<'i>(diag: &mut Diagnostics<'i>, dir: Option<&Path>, opts: &LoadOpt
         log: None,
         state: None,
         supervision: None,
+        foxglove: None,
+        fleet: None,
         simulation: false,
     };
     let Some(table) = diag::table(root) else {
@@ -435,9 +458,17 @@ fn parse_root<'i>(diag: &mut Diagnostics<'i>, dir: Option<&Path>, opts: &LoadOpt
         Some(n) => diag.deserialize::<StateConfig>("state", n),
         None => Some(StateConfig::default()),
     };
+    parts.foxglove = match diag::get(root, "foxglove") {
+        Some(n) => diag.deserialize::<FoxgloveConfig>("foxglove", n),
+        None => Some(FoxgloveConfig::default()),
+    };
     parts.supervision = match diag::get(root, "supervision") {
         Some(n) => diag.deserialize::<SupervisionConfig>("supervision", n),
         None => Some(SupervisionConfig::default()),
+    };
+    parts.fleet = match diag::get(root, "fleet") {
+        Some(n) => diag.deserialize::<FleetConfig>("fleet", n).map(Some),
+        None => Some(None),
     };
     parts.devices = parse_devices(diag, root);
     parts.robot = robot;

@@ -281,3 +281,27 @@ impl SupervisionConfig {
         }
     }
 }
+
+/// `[foxglove]`: a live view of the robot for Foxglove (its WebSocket protocol).
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FoxgloveConfig {
+    /// Where to serve it, e.g. `127.0.0.1:8765` (none: no live view). Loopback only: the
+    /// protocol has no access control; reach it from elsewhere through a tunnel.
+    pub listen: Option<String>,
+}
+
+impl FoxgloveConfig {
+    pub(crate) fn check(&self, c: &mut Checks<'_, '_>) {
+        if let Some(addr) = &self.listen {
+            match addr.parse::<std::net::SocketAddr>() {
+                Err(_) => c.error("listen", format!("{addr:?} is not an ip:port address")),
+                Ok(a) if !a.ip().is_loopback() => c.error(
+                    "listen",
+                    format!("{addr} is reachable from other hosts and the Foxglove protocol has no access control: listen on 127.0.0.1 and tunnel (ssh -L)"),
+                ),
+                Ok(_) => {}
+            }
+        }
+    }
+}

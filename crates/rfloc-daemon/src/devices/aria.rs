@@ -146,6 +146,7 @@ async fn run(ctx: DeviceContext, settings: AriaSettings) {
                 }
                 o = odometry.recv() => {
                     let Some(o) = o else { break };
+                    ctx.resources.note_battery(o.battery_v);
                     for ev in observer.observe(ctx.name(), &o) {
                         if !ctx.send(ev).await {
                             return;
@@ -189,6 +190,7 @@ async fn run(ctx: DeviceContext, settings: AriaSettings) {
                                 }
                                 o = odometry.recv() => {
                                     let Some(o) = o else { break };
+                                    ctx.resources.note_battery(o.battery_v);
                                     for ev in observer.observe(ctx.name(), &o) {
                                         if !ctx.send(ev).await {
                                             return;

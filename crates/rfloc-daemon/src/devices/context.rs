@@ -50,6 +50,8 @@ pub struct Resources {
     pub antenna: Mutex<Option<AntennaSource>>,
     /// Sweep settings of the pipeline (step, path-loss model, antenna pattern).
     pub scan: Mutex<Option<rfloc_bearing::ScanConfig>>,
+    /// The base's battery voltage from its latest SIP (for the fleet link's `batteryState`).
+    pub battery_v: Mutex<Option<f64>>,
 }
 
 impl Resources {
@@ -60,6 +62,13 @@ impl Resources {
             if a.is_none() {
                 *a = Some(source);
             }
+        }
+    }
+
+    /// Notes the base's battery voltage.
+    pub fn note_battery(&self, volts: f64) {
+        if let Ok(mut b) = self.battery_v.lock() {
+            *b = Some(volts);
         }
     }
 

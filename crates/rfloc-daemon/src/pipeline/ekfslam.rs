@@ -18,7 +18,7 @@ use rfloc_pose::{Pose2, PoseEstimate};
 
 use crate::config::EkfSlamSettings;
 use crate::events::{DeviceEvent, SweptBeacon};
-use crate::pipeline::{Pipeline, Request};
+use crate::pipeline::{Goal, InitOutcome, Pipeline, Request};
 
 /// Standing still this long (s) lets a pipeline without waypoints sweep.
 pub const PASSIVE_STILL_S: f64 = 1.0;
@@ -73,9 +73,13 @@ pub struct EkfSlamCounters {
 pub struct EkfSlamPipeline {
     ekf: EkfSlam,
     controller: Option<WaypointController>,
+    /// The controller's settings, for goals a fleet manager sets.
+    controller_config: WaypointControllerConfig,
     measurement: Measurement,
     /// Odometry noise as wheel slip (else the filter's configured `OdometryNoise`).
     wheel_slip: Option<WheelSlipNoise>,
+    /// σ_v (m/s) and σ_ω (rad/s) added to increments with wheel motion (wheel-slip model).
+    velocity_noise: (f64, f64),
     bearing_floor_rad2: f64,
     sweep_every_s: f64,
     sweep_timeout_s: f64,
@@ -113,6 +117,8 @@ impl EkfSlamPipeline {
             },
             delayed_init: DelayedInit {
                 max_std_m: s.beacon_init_max_std_m,
+                relax_after_views: s.beacon_init_relax_after_views,
+                max_relative_std: s.beacon_init_max_relative_std,
                 delay_range_bearing: s.beacon_init_with_range,
                 view_poses_in_state: s.beacon_init_pose_copies,
                 ..DelayedInit::default()
@@ -121,13 +127,14 @@ impl EkfSlamPipeline {
         };
         let start = Pose2::new(s.start[0], s.start[1], s.start[2].to_radians());
         let ekf = EkfSlam::new(config, start, Matrix3::zeros()).map_err(|e| e.to_string())?;
+        let controller_config = WaypointControllerConfig {
+            rho_min: s.waypoint_switch_m,
+            max_speed: s.max_speed_mps,
+            ..WaypointControllerConfig::default()
+        };
         let controller = (!s.waypoints.is_empty()).then(|| {
             WaypointController::new(
-                WaypointControllerConfig {
-                    rho_min: s.waypoint_switch_m,
-                    max_speed: s.max_speed_mps,
-                    ..WaypointControllerConfig::default()
-                },
+                controller_config,
                 s.waypoints.iter().map(|w| (w[0], w[1])).collect(),
             )
         });
@@ -135,12 +142,16 @@ impl EkfSlamPipeline {
         Ok(Self {
             ekf,
             controller,
+            controller_config,
             measurement,
             wheel_slip: s.wheel_slip.map(|w| WheelSlipNoise {
                 relative_sigma: w.relative_sigma,
                 track_m: w.track_m,
                 interval_s: w.interval_s,
             }),
+            velocity_noise: s
+                .wheel_slip
+                .map_or((0.0, 0.0), |w| (w.sigma_v_mps, w.sigma_omega_rps)),
             bearing_floor_rad2: floor * floor,
             sweep_every_s: s.sweep_every_s,
             sweep_timeout_s: s.sweep_timeout_s,
@@ -195,10 +206,19 @@ impl EkfSlamPipeline {
             return Some(self.ekf.pose_estimate(t));
         }
         let predicted = match &self.wheel_slip {
-            Some(model) => self.ekf.predict_odometry_with_covariance(
-                delta,
-                model.increment_covariance(&delta, dt.max(driven)),
-            ),
+            Some(model) => {
+                let mut cov = model.increment_covariance(&delta, dt.max(driven));
+                let (sv, sw) = self.velocity_noise;
+                let moved = delta.x.hypot(delta.y) > 1e-9 || delta.theta.abs() > 1e-9;
+                if moved && (sv > 0.0 || sw > 0.0) {
+                    let d = delta.x.hypot(delta.y);
+                    let (ev, ew) = ((sv * dt).powi(2), (sw * dt).powi(2));
+                    cov[(0, 0)] += ev;
+                    cov[(1, 1)] += ew * d * d / 4.0;
+                    cov[(2, 2)] += ew;
+                }
+                self.ekf.predict_odometry_with_covariance(delta, cov)
+            }
             None => self.ekf.predict_odometry(delta),
         };
         if let Err(e) = predicted {
@@ -357,6 +377,28 @@ impl EkfSlamPipeline {
 }
 
 impl Pipeline for EkfSlamPipeline {
+    fn scene(&self) -> Option<crate::pipeline::Scene> {
+        let beacons = self
+            .ekf
+            .beacons()
+            .iter()
+            .map(|b| crate::pipeline::SceneMark {
+                id: format!("{:016X}", b.id),
+                x: b.position.x,
+                y: b.position.y,
+                cov: Some([
+                    b.covariance[(0, 0)],
+                    b.covariance[(0, 1)],
+                    b.covariance[(1, 1)],
+                ]),
+            })
+            .collect();
+        Some(crate::pipeline::Scene {
+            beacons,
+            ..crate::pipeline::Scene::default()
+        })
+    }
+
     fn name(&self) -> &'static str {
         "ekfslam"
     }
@@ -378,6 +420,65 @@ impl Pipeline for EkfSlamPipeline {
 
     fn take_requests(&mut self) -> Vec<Request> {
         std::mem::take(&mut self.requests)
+    }
+
+    fn drives_to_goals(&self) -> bool {
+        true
+    }
+
+    /// A goal replaces the waypoints with one, driven like them (sweeps included) until the
+    /// estimate is inside the goal's tolerance (and the switching distance); `None` stops the
+    /// base and leaves the pipeline sweeping whenever the base stands still.
+    fn set_goal(&mut self, goal: Option<Goal>) -> bool {
+        match goal {
+            Some(g) => {
+                let mut config = self.controller_config;
+                config.rho_min = config.rho_min.min(0.8 * g.tolerance_m);
+                if let Some(limit) = g.max_speed.filter(|v| v.is_finite() && *v > 0.0) {
+                    config.max_speed = config.max_speed.min(limit);
+                    config.min_speed = config.min_speed.min(config.max_speed);
+                }
+                self.controller = Some(WaypointController::new(config, vec![(g.x, g.y)]));
+                if self.phase == Phase::Done {
+                    self.phase = Phase::Driving;
+                }
+            }
+            None => {
+                self.controller = None;
+                if matches!(self.phase, Phase::Done | Phase::Stopping) {
+                    self.phase = Phase::Driving;
+                }
+                self.stop_base();
+            }
+        }
+        true
+    }
+
+    /// A new start while nothing is mapped yet (the filter is rebuilt around it); refused once
+    /// beacons are in the map, whose positions are relative to the pose the filter holds.
+    fn init_position(&mut self, pose: Pose2) -> InitOutcome {
+        if self.ekf.beacon_count() > 0
+            || self.ekf.view_pose_count() > 0
+            || !self.ekf.pending_beacons().is_empty()
+        {
+            return InitOutcome::Refused(
+                "EKF-SLAM has mapped beacons relative to its pose; its position cannot be reset"
+                    .into(),
+            );
+        }
+        match EkfSlam::new(*self.ekf.config(), pose, Matrix3::zeros()) {
+            Ok(ekf) => {
+                self.ekf = ekf;
+                tracing::info!(
+                    x = pose.x,
+                    y = pose.y,
+                    theta = pose.theta,
+                    "start position set"
+                );
+                InitOutcome::Done
+            }
+            Err(e) => InitOutcome::Refused(e.to_string()),
+        }
     }
 }
 
@@ -590,5 +691,61 @@ mod tests {
         );
         p.handle(&odo(0.2, 0.0, 0.0, 0.0, 0.0));
         assert!(p.take_requests().is_empty());
+    }
+
+    #[test]
+    fn a_fleet_goal_is_driven_to_and_taken_away() {
+        let mut s = settings(Vec::new());
+        s.sweep_every_s = 100.0;
+        let mut p = EkfSlamPipeline::new(&s).unwrap();
+        assert!(p.drives_to_goals());
+        assert_eq!(
+            p.init_position(Pose2::new(1.0, 0.0, 0.0)),
+            InitOutcome::Done
+        );
+        assert!(p.set_goal(Some(Goal {
+            x: 3.0,
+            y: 0.0,
+            tolerance_m: 0.25,
+            max_speed: Some(0.1)
+        })));
+        p.handle(&odo(0.0, 0.0, 0.0, 0.0, 0.0));
+        p.handle(&odo(0.1, 0.0, 0.0, 0.0, 0.0));
+        let r = p.take_requests();
+        assert!(
+            matches!(r.as_slice(), [Request::Velocity { v, .. }] if *v > 0.0 && *v <= 0.1),
+            "{r:?}"
+        );
+        // Driven there in small steps: done, stopped within 0.8 of the tolerance (0.2 m).
+        let (mut t, mut x) = (0.1, 0.0);
+        let mut last = Vec::new();
+        while !p.is_done() && t < 100.0 {
+            t += 0.1;
+            x += 0.01;
+            p.handle(&odo(t, x, 0.0, 0.0, 0.1));
+            last = p.take_requests();
+        }
+        assert!(p.is_done());
+        assert!(
+            (1.0 + x - 3.0).abs() <= 0.2 + 0.011,
+            "stopped at {}",
+            1.0 + x
+        );
+        assert_eq!(last, vec![Request::Velocity { v: 0.0, w: 0.0 }]);
+        // A new goal drives again; taking it away stops the base.
+        p.set_goal(Some(Goal {
+            x: 0.0,
+            y: 0.0,
+            tolerance_m: 0.25,
+            max_speed: None,
+        }));
+        p.handle(&odo(t + 0.1, x, 0.0, 0.0, 0.0));
+        assert!(!p.is_done());
+        p.take_requests();
+        p.set_goal(None);
+        assert_eq!(
+            p.take_requests(),
+            vec![Request::Velocity { v: 0.0, w: 0.0 }]
+        );
     }
 }

@@ -20,7 +20,7 @@ use rfloc_pose::{Pose2, PoseEstimate};
 
 use crate::config::{AntennaSide, EmitterSettings};
 use crate::events::DeviceEvent;
-use crate::pipeline::{OdometryPipeline, Pipeline, Request, TargetEstimate};
+use crate::pipeline::{Goal, InitOutcome, OdometryPipeline, Pipeline, Request, TargetEstimate};
 
 pub mod homing;
 
@@ -33,6 +33,7 @@ const LOG_EVERY_S: f64 = 5.0;
 #[must_use]
 pub fn homing_config(s: &EmitterSettings, start: &Pose2) -> HomingConfig {
     let cells = (s.map_side_m / s.grid_cell_m).round().max(1.0) as usize;
+    let max_side = (s.map_max_side_m / s.grid_cell_m).round().max(1.0) as usize;
     HomingConfig {
         rss: DifferentialRssConfig {
             a1_dbm_at_1m: s.a1_dbm_at_1m,
@@ -48,6 +49,10 @@ pub fn homing_config(s: &EmitterSettings, start: &Pose2) -> HomingConfig {
             width: cells,
             height: cells,
             origin: Point2::new(start.x - s.map_side_m / 2.0, start.y - s.map_side_m / 2.0),
+            // `map_side_m` is the initial extent: the map grows with the explored area and the
+            // goal, up to `map_max_side_m` squared.
+            growable: true,
+            max_cells: max_side.saturating_mul(max_side).max(cells * cells),
             ..OccupancyGridConfig::default()
         },
         navigator: NavigatorConfig {
@@ -55,9 +60,11 @@ pub fn homing_config(s: &EmitterSettings, start: &Pose2) -> HomingConfig {
             obstacle_distance_m: s.obstacle_distance_m,
             arrival_distance_m: s.arrival_distance_m,
             drive_speed_mps: s.drive_speed_mps,
+            arrival_max_sigma_m: s.arrival_max_sigma_m,
             ..NavigatorConfig::default()
         },
         seed: s.seed,
+        receiver_sensitivity_dbm: s.receiver_sensitivity_dbm,
     }
 }
 
@@ -72,6 +79,8 @@ pub struct EmitterCounters {
     pub incomplete: u64,
     /// Polls the emitter did not answer.
     pub unanswered: u64,
+    /// Filter updates with one or two receivers read as their sensitivity (heard nothing).
+    pub censored: u64,
     /// Scans integrated.
     pub scans: u64,
     /// Times the navigator came to a stop at the emitter.
@@ -90,8 +99,9 @@ pub struct EmitterPipeline {
     pose: Option<Pose2>,
     /// A scan waiting for the next odometry event, whose pose it is integrated at.
     pending_scan: Option<Vec<rfloc_emitter::ScanBeam>>,
-    /// Newest reading per receiver: front, left, back, right; (time, dBm).
-    readings: [Option<(f64, f64)>; 4],
+    /// Newest reading per receiver: front, left, back, right; (time, dBm or `None` when the
+    /// poll went unanswered).
+    readings: [Option<(f64, Option<f64>)>; 4],
     control_period_s: f64,
     reading_window_s: f64,
     next_control: Option<f64>,
@@ -103,6 +113,19 @@ pub struct EmitterPipeline {
     /// The bumper rings as the base last reported them.
     bumpers: Bumpers,
     counters: EmitterCounters,
+    /// What a fleet manager asked for: homing (`None`), a goal, or standing still.
+    fleet: FleetDrive,
+}
+
+/// The emitter robot under a fleet manager.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum FleetDrive {
+    /// No goal was ever set: home on the emitter.
+    Homing,
+    /// Drive to this goal with the navigator (grid, A*, reflexes) instead of the emitter.
+    Goal(Goal),
+    /// The goal was taken away: stand still.
+    Hold,
 }
 
 fn slot(side: AntennaSide) -> usize {
@@ -158,6 +181,7 @@ impl EmitterPipeline {
             targets: Vec::new(),
             bumpers: Bumpers::default(),
             counters: EmitterCounters::default(),
+            fleet: FleetDrive::Homing,
         })
     }
 
@@ -185,18 +209,36 @@ impl EmitterPipeline {
         self.estimate
     }
 
-    /// The four receivers' readings if all are fresh at `t`; they are then used up.
+    /// The four receivers' readings if all are fresh at `t`; they are then used up. With a
+    /// receiver sensitivity configured, a receiver that heard nothing reads as that level as
+    /// long as at least two heard the emitter (the true level was at most the sensitivity);
+    /// otherwise all four must have heard it.
     fn take_fresh(&mut self, t: f64) -> Option<AntennaRss> {
         let window = self.reading_window_s;
-        let fresh = |r: Option<(f64, f64)>| r.filter(|(rt, _)| t - rt <= window).map(|r| r.1);
-        let [front, left, back, right] = self.readings.map(fresh);
+        let floor = self.homing.config().receiver_sensitivity_dbm;
+        let fresh = self
+            .readings
+            .map(|r| r.filter(|(rt, _)| t - rt <= window).map(|r| r.1));
+        if fresh.iter().any(Option::is_none) {
+            return None;
+        }
+        // Every receiver has answered this step: the readings are used up either way.
+        self.readings = [None; 4];
+        let heard = fresh.iter().filter(|r| matches!(r, Some(Some(_)))).count();
+        if heard < 2 {
+            return None;
+        }
+        let level = |r: Option<Option<f64>>| r.flatten().or(floor);
+        let [front, left, back, right] = fresh.map(level);
         let rss = AntennaRss {
             front: front?,
             back: back?,
             left: left?,
             right: right?,
         };
-        self.readings = [None; 4];
+        if heard < 4 {
+            self.counters.censored += 1;
+        }
         Some(rss)
     }
 
@@ -238,6 +280,19 @@ impl EmitterPipeline {
             }
             None => self.counters.incomplete += 1,
         }
+        match self.fleet {
+            FleetDrive::Homing => {}
+            FleetDrive::Hold => {
+                self.requests.push(Request::Velocity { v: 0.0, w: 0.0 });
+                return;
+            }
+            FleetDrive::Goal(g) => {
+                if (pose.x - g.x).hypot(pose.y - g.y) <= 0.8 * g.tolerance_m {
+                    self.requests.push(Request::Velocity { v: 0.0, w: 0.0 });
+                    return;
+                }
+            }
+        }
         let cmd = self.homing.command(t, pose, self.bumpers);
         let arrived = cmd.state == NavigatorState::Arrived;
         if arrived && !self.arrived {
@@ -278,6 +333,7 @@ impl Drop for EmitterPipeline {
             updates = c.updates,
             incomplete = c.incomplete,
             unanswered = c.unanswered,
+            censored = c.censored,
             scans = c.scans,
             arrivals = c.arrivals,
             bumps = c.bumps,
@@ -291,6 +347,19 @@ impl Drop for EmitterPipeline {
 }
 
 impl Pipeline for EmitterPipeline {
+    fn scene(&self) -> Option<crate::pipeline::Scene> {
+        let particles = self
+            .homing
+            .particles()
+            .iter()
+            .map(|p| [p.position.x, p.position.y, 0.0, p.weight])
+            .collect();
+        Some(crate::pipeline::Scene {
+            particles,
+            ..crate::pipeline::Scene::default()
+        })
+    }
+
     fn name(&self) -> &'static str {
         "emitter"
     }
@@ -320,13 +389,12 @@ impl Pipeline for EmitterPipeline {
             DeviceEvent::EmitterRss {
                 t, antenna, dbm, ..
             } => {
-                match dbm {
-                    Some(v) if v.is_finite() => {
-                        if let Some(r) = self.readings.get_mut(slot(*antenna)) {
-                            *r = Some((*t, *v));
-                        }
-                    }
-                    _ => self.counters.unanswered += 1,
+                let heard = dbm.filter(|v| v.is_finite());
+                if heard.is_none() {
+                    self.counters.unanswered += 1;
+                }
+                if let Some(r) = self.readings.get_mut(slot(*antenna)) {
+                    *r = Some((*t, heard));
                 }
                 None
             }
@@ -364,6 +432,34 @@ impl Pipeline for EmitterPipeline {
 
     fn take_targets(&mut self) -> Vec<TargetEstimate> {
         std::mem::take(&mut self.targets)
+    }
+
+    fn drives_to_goals(&self) -> bool {
+        true
+    }
+
+    /// A goal takes the emitter's place as the navigator's target (the navigator stops on its
+    /// own at `arrival_distance_m`, the pipeline within 0.8 of the goal's tolerance); `None`
+    /// holds the robot still. The emitter is still tracked meanwhile.
+    fn set_goal(&mut self, goal: Option<Goal>) -> bool {
+        self.fleet = goal.map_or(FleetDrive::Hold, FleetDrive::Goal);
+        self.homing
+            .set_goal(goal.map(|g| rfloc_emitter::Point2::new(g.x, g.y)));
+        if goal.is_none() {
+            self.requests.push(Request::Velocity { v: 0.0, w: 0.0 });
+        }
+        true
+    }
+
+    /// The start becomes what makes the current odometry come out at `pose`.
+    fn init_position(&mut self, pose: Pose2) -> InitOutcome {
+        // start ⊕ odometry = the pose published last; the new start keeps that odometry.
+        let odometry = self
+            .pose
+            .map_or_else(Pose2::default, |p| p.relative_to(&self.start));
+        self.start = pose.compose(&Pose2::default().relative_to(&odometry));
+        self.pose = Some(pose);
+        InitOutcome::Done
     }
 }
 
@@ -473,6 +569,80 @@ mod tests {
     }
 
     #[test]
+    fn receivers_that_hear_nothing_read_as_the_sensitivity_if_two_heard() {
+        let mut s = settings();
+        s.receiver_sensitivity_dbm = Some(-100.0);
+        let mut p = EmitterPipeline::new(&s).unwrap();
+        let silent = |t, antenna| DeviceEvent::EmitterRss {
+            device: format!("{antenna:?}"),
+            t,
+            antenna,
+            dbm: None,
+        };
+        // Two heard, two silent: one update, counted as censored.
+        for e in [
+            rss(0.0, AntennaSide::Front, -70.0),
+            rss(0.0, AntennaSide::Left, -80.0),
+            silent(0.0, AntennaSide::Back),
+            silent(0.0, AntennaSide::Right),
+        ] {
+            p.handle(&e);
+        }
+        p.handle(&odometry(0.0, 0.0));
+        let c = p.counters();
+        assert_eq!((c.updates, c.censored, c.unanswered), (1, 1, 2));
+        let est = p.estimate().unwrap();
+        assert!(est.x > 0.0 && est.y > 0.0, "front-left: {est:?}");
+        // One heard: no update.
+        for e in [
+            rss(0.2, AntennaSide::Front, -70.0),
+            silent(0.2, AntennaSide::Left),
+            silent(0.2, AntennaSide::Back),
+            silent(0.2, AntennaSide::Right),
+        ] {
+            p.handle(&e);
+        }
+        p.handle(&odometry(0.2, 0.0));
+        assert_eq!(p.counters().updates, 1);
+        // Without a sensitivity every receiver must hear it.
+        let mut strict = EmitterPipeline::new(&settings()).unwrap();
+        for e in [
+            rss(0.0, AntennaSide::Front, -70.0),
+            rss(0.0, AntennaSide::Left, -80.0),
+            rss(0.0, AntennaSide::Back, -85.0),
+            silent(0.0, AntennaSide::Right),
+        ] {
+            strict.handle(&e);
+        }
+        strict.handle(&odometry(0.0, 0.0));
+        assert_eq!(strict.counters().updates, 0);
+    }
+
+    #[test]
+    fn the_map_grows_for_a_far_estimate_and_arrival_needs_it_near() {
+        let mut s = settings();
+        s.map_side_m = 4.0;
+        let mut p = EmitterPipeline::new(&s).unwrap();
+        let before = p.homing().grid().width();
+        // An emitter 20 m ahead, far outside the initial 4 m map.
+        for k in 0..40 {
+            let t = f64::from(k) * 0.1;
+            if k % 2 == 0 {
+                for e in ahead(t, 20.0) {
+                    p.handle(&e);
+                }
+            }
+            p.handle(&odometry(t, 0.0));
+        }
+        let e = p.estimate().unwrap();
+        assert!(e.x > 8.0, "{e:?}");
+        let g = p.homing().grid();
+        assert!(g.width() > before, "the map grew: {} cells wide", g.width());
+        assert!(g.world_to_cell(&e).is_some(), "the estimate is on the map");
+        assert!(!p.arrived(), "no arrival 20 m from the estimate");
+    }
+
+    #[test]
     fn a_front_bumper_contact_backs_the_robot_away() {
         let mut p = EmitterPipeline::new(&settings()).unwrap();
         for e in ahead(0.0, 3.0) {
@@ -518,5 +688,46 @@ mod tests {
             beams,
         });
         assert_eq!(p.counters().scans, 1);
+    }
+
+    #[test]
+    fn a_fleet_goal_replaces_the_emitter_and_none_holds_the_robot() {
+        let mut p = EmitterPipeline::new(&settings()).unwrap();
+        assert!(p.drives_to_goals());
+        p.handle(&odometry(0.0, 0.0));
+        p.take_requests();
+        assert!(p.set_goal(Some(Goal {
+            x: 0.1,
+            y: 0.0,
+            tolerance_m: 0.25,
+            max_speed: None
+        })));
+        p.handle(&odometry(0.2, 0.0));
+        assert_eq!(
+            p.take_requests(),
+            vec![Request::Velocity { v: 0.0, w: 0.0 }],
+            "already there"
+        );
+        p.set_goal(None);
+        assert_eq!(
+            p.take_requests(),
+            vec![Request::Velocity { v: 0.0, w: 0.0 }]
+        );
+        for k in 2..6 {
+            p.handle(&odometry(0.2 * f64::from(k), 0.0));
+            for r in p.take_requests() {
+                assert_eq!(r, Request::Velocity { v: 0.0, w: 0.0 }, "held still");
+            }
+        }
+        assert_eq!(
+            p.init_position(Pose2::new(2.0, 1.0, 0.0)),
+            InitOutcome::Done
+        );
+        let e = p.handle(&odometry(1.2, 0.5)).unwrap();
+        assert!(
+            (e.pose.x - 2.5).abs() < 1e-9 && (e.pose.y - 1.0).abs() < 1e-9,
+            "{:?}",
+            e.pose
+        );
     }
 }

@@ -126,6 +126,12 @@ impl GoalDrive {
         self.phase
     }
 
+    /// What the drive was planned with.
+    #[must_use]
+    pub fn settings(&self) -> GoalSettings {
+        self.settings
+    }
+
     /// Velocity requests to route to the base, oldest first.
     pub fn take_requests(&mut self) -> Vec<Request> {
         std::mem::take(&mut self.requests)

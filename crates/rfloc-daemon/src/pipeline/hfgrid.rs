@@ -17,7 +17,7 @@ use rfloc_pose::{angle_diff, EstimateMode, Pose2, PoseEstimate};
 
 use crate::config::HfGridSettings;
 use crate::events::DeviceEvent;
-use crate::pipeline::Pipeline;
+use crate::pipeline::{InitOutcome, Pipeline, Request};
 
 /// Where the pipeline is.
 enum Phase {
@@ -45,7 +45,17 @@ pub struct HfGridPipeline {
     last_no_fix: f64,
     /// Tag reports since the last odometry event, applied as one update.
     pending: Vec<TagReading>,
+    /// A turn the pipeline drives itself (a fleet manager's `initPosition`): odometry time it
+    /// started at, once odometry came.
+    self_turn: Option<Option<f64>>,
+    init_result: Option<Result<(), String>>,
+    requests: Vec<Request>,
 }
+
+/// Turn rate of a turn the pipeline drives itself, rad/s (the seed's eight 45° steps in 2 s).
+const SELF_TURN_RATE: f64 = std::f64::consts::PI / 8.0;
+/// A self-driven turn not solved within this much odometry time fails, seconds.
+const SELF_TURN_TIMEOUT_S: f64 = 120.0;
 
 /// How much short of 360° of odometry rotation still counts as a full turn.
 const FULL_TURN_SLACK: f64 = 10.0 * std::f64::consts::PI / 180.0;
@@ -61,7 +71,7 @@ impl std::fmt::Debug for HfGridPipeline {
 impl HfGridPipeline {
     #[must_use]
     pub fn new(settings: &HfGridSettings, grid: TagGrid) -> Self {
-        let model = RssiModel::seed002_blind_spot();
+        let model = RssiModel::seed002_blind_spot().scaled(settings.rssi_distance_scale);
         let offset = (-settings.antenna_offset_m, 0.0);
         let init = InitialPoseConfig {
             antenna_offset_m: offset,
@@ -85,6 +95,9 @@ impl HfGridPipeline {
             refusals: 0,
             last_no_fix: f64::NEG_INFINITY,
             pending: Vec::new(),
+            self_turn: None,
+            init_result: None,
+            requests: Vec::new(),
         }
     }
 
@@ -252,12 +265,42 @@ impl HfGridPipeline {
     }
 }
 
-impl Pipeline for HfGridPipeline {
-    fn name(&self) -> &'static str {
-        "hfgrid"
+impl HfGridPipeline {
+    /// Drives a self-driven turn on odometry events: turn on, stop when the pose is solved, the
+    /// solve was refused after a full turn and a quarter, or the time ran out.
+    fn drive_turn(&mut self, event: &DeviceEvent) {
+        let (Some(started), DeviceEvent::Odometry { t, .. }) = (&mut self.self_turn, event) else {
+            return;
+        };
+        let start = *started.get_or_insert(*t);
+        let outcome = if matches!(self.phase, Phase::Tracking(_)) {
+            Some(Ok(()))
+        } else if self.turned >= TAU + std::f64::consts::FRAC_PI_2 {
+            Some(Err(format!(
+                "no initial pose from a full turn ({} refusals)",
+                self.refusals
+            )))
+        } else if *t - start > SELF_TURN_TIMEOUT_S {
+            Some(Err(format!(
+                "the turn did not complete within {SELF_TURN_TIMEOUT_S} s"
+            )))
+        } else {
+            None
+        };
+        match outcome {
+            Some(result) => {
+                self.requests.push(Request::Velocity { v: 0.0, w: 0.0 });
+                self.self_turn = None;
+                self.init_result = Some(result);
+            }
+            None => self.requests.push(Request::Velocity {
+                v: 0.0,
+                w: SELF_TURN_RATE,
+            }),
+        }
     }
 
-    fn handle(&mut self, event: &DeviceEvent) -> Option<PoseEstimate> {
+    fn handle_event(&mut self, event: &DeviceEvent) -> Option<PoseEstimate> {
         match &mut self.phase {
             Phase::Turning => self.handle_turning(event),
             Phase::Tracking(tracker) => match event {
@@ -301,6 +344,60 @@ impl Pipeline for HfGridPipeline {
                 | DeviceEvent::Sweep { .. } => None,
             },
         }
+    }
+}
+
+impl Pipeline for HfGridPipeline {
+    fn scene(&self) -> Option<crate::pipeline::Scene> {
+        let tags = self
+            .grid
+            .tags()
+            .into_iter()
+            .map(|(uid, x, y)| crate::pipeline::SceneMark {
+                id: format!("{uid:016X}"),
+                x,
+                y,
+                cov: None,
+            })
+            .collect();
+        Some(crate::pipeline::Scene {
+            tags,
+            ..crate::pipeline::Scene::default()
+        })
+    }
+
+    fn name(&self) -> &'static str {
+        "hfgrid"
+    }
+
+    fn handle(&mut self, event: &DeviceEvent) -> Option<PoseEstimate> {
+        let estimate = self.handle_event(event);
+        self.drive_turn(event);
+        estimate
+    }
+
+    fn take_requests(&mut self) -> Vec<Request> {
+        std::mem::take(&mut self.requests)
+    }
+
+    /// The HF robot finds its own position: a 360° turn on the spot over the tag grid, driven
+    /// by the pipeline, from which the initial pose is solved again (the given pose is not
+    /// used). The outcome follows through [`Pipeline::take_init_result`].
+    fn init_position(&mut self, _pose: Pose2) -> InitOutcome {
+        self.phase = Phase::Turning;
+        self.stops.clear();
+        self.current_heading = None;
+        self.odom_start = None;
+        self.turned = 0.0;
+        self.pending.clear();
+        self.self_turn = Some(None);
+        self.init_result = None;
+        tracing::info!("initialisation turn started");
+        InitOutcome::Pending
+    }
+
+    fn take_init_result(&mut self) -> Option<Result<(), String>> {
+        self.init_result.take()
     }
 }
 
@@ -380,5 +477,45 @@ mod tests {
             );
         }
         eprintln!("50 tracking steps took {:?}", started.elapsed());
+    }
+
+    #[test]
+    fn init_position_turns_the_robot_and_reports_a_refusal() {
+        let mut p = HfGridPipeline::new(&HfGridSettings::default(), TagGrid::seed002_test_field());
+        assert_eq!(p.init_position(Pose2::default()), InitOutcome::Pending);
+        let mut t = 0.0;
+        let mut theta = 0.0;
+        let mut turns = 0;
+        // No tag under the antenna: the turn goes round, is refused, and stops.
+        while p.self_turn.is_some() && t < 200.0 {
+            p.handle(&DeviceEvent::Odometry {
+                device: "base".into(),
+                t,
+                pose: Pose2::new(0.0, 0.0, theta),
+                v: 0.0,
+                w: SELF_TURN_RATE,
+            });
+            for r in p.take_requests() {
+                if r == (Request::Velocity {
+                    v: 0.0,
+                    w: SELF_TURN_RATE,
+                }) {
+                    turns += 1;
+                }
+            }
+            t += 0.1;
+            theta += SELF_TURN_RATE * 0.1;
+        }
+        assert!(turns > 150, "{turns} turn requests");
+        let result = p.take_init_result().expect("a result");
+        assert!(result.is_err(), "{result:?}");
+        p.handle(&DeviceEvent::Odometry {
+            device: "base".into(),
+            t,
+            pose: Pose2::new(0.0, 0.0, theta),
+            v: 0.0,
+            w: 0.0,
+        });
+        assert!(p.take_requests().is_empty(), "the turn stopped for good");
     }
 }

@@ -46,6 +46,79 @@ pub trait Pipeline: Send {
     fn take_targets(&mut self) -> Vec<TargetEstimate> {
         Vec::new()
     }
+    /// What the pipeline knows of the world, for a viewer: its beacon or tag map, its
+    /// particles. `None` when it has nothing to show.
+    fn scene(&self) -> Option<Scene> {
+        None
+    }
+    /// Whether [`Pipeline::set_goal`] can drive the robot (a fleet manager's orders need it).
+    fn drives_to_goals(&self) -> bool {
+        false
+    }
+    /// Drive to `goal` (map frame), replacing any route of the robot file; `None`: stop and stay
+    /// (the configured route is not resumed). Returns whether the pipeline drives to goals; one
+    /// that does not ignores the call. Called on the estimator thread between events.
+    fn set_goal(&mut self, goal: Option<Goal>) -> bool {
+        let _ = goal;
+        false
+    }
+    /// Take `pose` (map frame) as where the robot is now (a fleet manager's `initPosition`).
+    fn init_position(&mut self, pose: rfloc_pose::Pose2) -> InitOutcome {
+        let _ = pose;
+        InitOutcome::Refused(format!(
+            "the {} pipeline cannot be given its position",
+            self.name()
+        ))
+    }
+    /// The outcome of an initialisation that was [`InitOutcome::Pending`], once it has one
+    /// (polled between events).
+    fn take_init_result(&mut self) -> Option<Result<(), String>> {
+        None
+    }
+}
+
+/// A pipeline's picture of the world ([`Pipeline::scene`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Scene {
+    /// Mapped beacons: id, position, position covariance (xx, xy, yy) when known.
+    pub beacons: Vec<SceneMark>,
+    /// Floor or wall tags.
+    pub tags: Vec<SceneMark>,
+    /// Particles: x, y, yaw, weight.
+    pub particles: Vec<[f64; 4]>,
+}
+
+/// One mapped thing of a [`Scene`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneMark {
+    pub id: String,
+    pub x: f64,
+    pub y: f64,
+    pub cov: Option<[f64; 3]>,
+}
+
+/// Where a fleet manager wants the robot (the next node of an order).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Goal {
+    /// Position in the map frame, metres.
+    pub x: f64,
+    pub y: f64,
+    /// The goal counts as reached within this distance, metres: a pipeline stops inside it.
+    pub tolerance_m: f64,
+    /// Speed limit on the way, m/s.
+    pub max_speed: Option<f64>,
+}
+
+/// What a pipeline did with an initial position.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum InitOutcome {
+    /// Taken: the pipeline's pose is the given one from now on.
+    Done,
+    /// Under way (the HF robot's 360° turn); the result comes from
+    /// [`Pipeline::take_init_result`].
+    Pending,
+    /// Not possible, and why.
+    Refused(String),
 }
 
 /// A position estimate of something the robot tracks, in the map frame.

@@ -26,7 +26,7 @@ use rfloc_snapshot::{
 use crate::config::SnapshotSettings;
 use crate::events::DeviceEvent;
 use crate::pipeline::goal::{GoalDrive, GoalSettings};
-use crate::pipeline::{Pipeline, Request};
+use crate::pipeline::{Goal, Pipeline, Request};
 
 /// A tag-map pose is a `fix` when the heaviest mode holds this much of the weight ...
 pub const FIX_MASS: f64 = 0.8;
@@ -100,8 +100,23 @@ enum Localiser {
 pub struct SnapshotPipeline {
     localiser: Option<Localiser>,
     goal: Option<GoalDrive>,
+    /// The survey a tag-map localiser was learned with: goals are planned over it.
+    survey: Option<Box<Survey>>,
+    /// How goal drives step (`goal` is set per drive).
+    drive: GoalSettings,
+    /// A stop to send after a goal was taken away.
+    stop_pending: bool,
     path: PathBuf,
     warned: bool,
+}
+
+fn drive_settings(settings: &SnapshotSettings) -> GoalSettings {
+    GoalSettings {
+        goal: settings.goal.map_or((0.0, 0.0), |[x, y]| (x, y)),
+        radius_m: settings.goal_radius_m,
+        action_duration_s: settings.action_duration_s,
+        drive_duration_s: settings.drive_duration_s,
+    }
 }
 
 impl std::fmt::Debug for SnapshotPipeline {
@@ -177,6 +192,9 @@ impl SnapshotPipeline {
                 tags, survey, seed,
             )))),
             goal: None,
+            survey: Some(Box::new(survey.clone())),
+            drive: drive_settings(&SnapshotSettings::default()),
+            stop_pending: false,
             path: PathBuf::from("(in memory)"),
             warned: false,
         }
@@ -195,21 +213,17 @@ impl SnapshotPipeline {
         }
         let path = state_file(&settings.database, state_dir).unwrap_or_default();
         let (localiser, survey) = load_learned(settings, state_dir)?;
+        let drive = drive_settings(settings);
         let goal = match (&survey, settings.goal) {
-            (Some(survey), Some([x, y])) => Some(GoalDrive::plan(
-                survey,
-                GoalSettings {
-                    goal: (x, y),
-                    radius_m: settings.goal_radius_m,
-                    action_duration_s: settings.action_duration_s,
-                    drive_duration_s: settings.drive_duration_s,
-                },
-            )),
+            (Some(survey), Some(_)) => Some(GoalDrive::plan(survey, drive)),
             _ => None,
         };
         Ok(Self {
             localiser: Some(localiser),
             goal,
+            survey: survey.map(Box::new),
+            drive,
+            stop_pending: false,
             path,
             warned: false,
         })
@@ -222,10 +236,48 @@ impl Pipeline for SnapshotPipeline {
     }
 
     fn take_requests(&mut self) -> Vec<Request> {
-        self.goal
+        let mut out = self
+            .goal
             .as_mut()
             .map(GoalDrive::take_requests)
-            .unwrap_or_default()
+            .unwrap_or_default();
+        if std::mem::take(&mut self.stop_pending) {
+            out.push(Request::Velocity { v: 0.0, w: 0.0 });
+        }
+        out
+    }
+
+    /// With a tag map and its survey: a goal is planned over the survey (value iteration, as the
+    /// robot file's `goal`) and driven to in seed actions until steady fixes are within the
+    /// smaller of `goal_radius_m` and the goal's tolerance. The cluster database cannot drive.
+    fn drives_to_goals(&self) -> bool {
+        self.survey.is_some()
+    }
+
+    fn set_goal(&mut self, goal: Option<Goal>) -> bool {
+        let Some(survey) = self.survey.as_deref() else {
+            return false;
+        };
+        match goal {
+            Some(g) => {
+                let settings = GoalSettings {
+                    goal: (g.x, g.y),
+                    radius_m: self.drive.radius_m.min(g.tolerance_m),
+                    ..self.drive
+                };
+                // The same goal again keeps the drive (and its plan) going.
+                if self.goal.as_ref().is_some_and(|d| d.settings() == settings) {
+                    return true;
+                }
+                let was_driving = self.goal.is_some();
+                self.goal = Some(GoalDrive::plan(survey, settings));
+                self.stop_pending = was_driving;
+            }
+            None => {
+                self.stop_pending = self.goal.take().is_some();
+            }
+        }
+        true
     }
 
     fn handle(&mut self, event: &DeviceEvent) -> Option<PoseEstimate> {

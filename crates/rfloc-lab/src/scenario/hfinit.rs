@@ -5,11 +5,19 @@
 //! - a Pioneer emulator and a KTS RFIDM1356 emulator serve the master sides of two ptys; the
 //!   `AriaClient` and `KtsClient` open the slave sides by path through `rfloc_transport::open`,
 //!   wrapped in `Recorder`s writing `pioneer.cap` and `kts.cap` into the trial folder;
-//! - the reader's antenna sits 10 cm behind the robot centre and follows the emulator's true
-//!   pose; tags and RSSI come from the KTS emulator (seed 002 Table 4 with the 5 cm blind spot);
-//!   the tag field is the scenario world's HF grid;
-//! - the robot turns on the spot in eight 45° steps at the scenario's turn rate with a short
-//!   pause at each stop (as the seed), driven through the real client (RVEL commands);
+//! - the reader's antenna sits `[sensors] hf.antenna_offset` behind the robot centre and
+//!   follows the emulator's true pose; the tag field is the scenario world's HF grid, each tag
+//!   displaced by the model's placement error (`hf.placement_sigma_m`, drawn per trial), and
+//!   the KTS emulator reports each tag in range with the simulator's RSSI model (`hf.curve`
+//!   with `hf.spread_levels` of Gaussian spread before rounding) and misses it with
+//!   `hf.miss_probability`;
+//! - the estimator does not share that model: the daemon's pipeline localises with its own
+//!   RSSI table (seed 002's emulator bands, `rfloc_hfgrid::RssiModel`), the tags' grid
+//!   positions and the antenna offset as an operator would configure them (a `[mismatch]
+//!   scale` multiplies the table's distances);
+//! - the robot turns on the spot in `params.readings_per_turn` equal steps (default 8 × 45°) at
+//!   the scenario's turn rate with a short pause at each stop (as the seed), driven through the
+//!   real client (RVEL commands); the reader scans every 100 ms tick throughout;
 //! - the daemon's own [`HfGridPipeline`] consumes the drivers' odometry and tag events (heading
 //!   from odometry, continuous); its first fix is the trial's answer, scored against the
 //!   emulator's true pose at that moment. The pipeline then keeps tracking until the end.
@@ -28,6 +36,8 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::Context;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
 use rfloc_aria::{
     AriaClient, ClientConfig as AriaClientConfig, EmulatorConfig as RobotConfig, RobotEmulator,
 };
@@ -47,8 +57,6 @@ use rfloc_daemon::config::{GridTag, HfGridSettings};
 use rfloc_daemon::events::DeviceEvent;
 use rfloc_daemon::pipeline::{HfGridPipeline, Pipeline};
 
-/// Antenna offset behind the robot centre (seed 002: 10 cm).
-const ANTENNA_OFFSET_M: f64 = 0.10;
 /// Header note of the trial's captures.
 const CAPTURE_NOTE: &str =
     "simulated seed 002 initialisation turn; timestamps are the Pioneer emulator's simulated seconds";
@@ -68,7 +76,7 @@ fn full_uid(uid: u64) -> u64 {
 }
 
 /// The reader emulator's tag field from the scenario world (row-major, x fastest).
-fn reader_grid(scenario: &Scenario) -> anyhow::Result<TagGrid> {
+pub(crate) fn reader_grid(scenario: &Scenario) -> anyhow::Result<TagGrid> {
     let world = &scenario.world;
     let pitch = world.hf_pitch.context("scenario world has no HF grid")?;
     let mut tags = world.hf_tags.clone();
@@ -93,11 +101,13 @@ fn reader_grid(scenario: &Scenario) -> anyhow::Result<TagGrid> {
     })
 }
 
-/// The pipeline's tag table from the scenario world.
+/// The pipeline's tag table from the scenario world (grid positions), the antenna offset and
+/// the RSSI table's distance scale (`[mismatch] scale`).
 fn pipeline_settings(scenario: &Scenario) -> HfGridSettings {
     HfGridSettings {
         pitch_m: scenario.world.hf_pitch.unwrap_or(0.10),
-        antenna_offset_m: ANTENNA_OFFSET_M,
+        antenna_offset_m: scenario.hf_model().antenna_offset,
+        rssi_distance_scale: scenario.spec.mismatch.map_or(1.0, |m| m.scale),
         tags: scenario
             .world
             .hf_tags
@@ -112,9 +122,12 @@ fn pipeline_settings(scenario: &Scenario) -> HfGridSettings {
     }
 }
 
-/// Eight 45° steps with a pause at each stop, driven by the odometry's accumulated rotation.
+/// `stops` equal steps of one turn with a pause at each stop, driven by the odometry's
+/// accumulated rotation.
 struct TurnScript {
     rate: f64,
+    /// Stops per turn (`params.readings_per_turn`).
+    per_turn: u32,
     /// Rotation so far (odometry), rad.
     turned: f64,
     /// Stops reached.
@@ -125,9 +138,10 @@ struct TurnScript {
 }
 
 impl TurnScript {
-    fn new(rate: f64) -> Self {
+    fn new(rate: f64, per_turn: u32) -> Self {
         Self {
             rate,
+            per_turn: per_turn.max(1),
             turned: 0.0,
             stops: 0,
             pause_until: 0.5,
@@ -141,8 +155,9 @@ impl TurnScript {
             return 0.0;
         }
         // The last stop goes 2° past the full turn so the pipeline sees all of it.
-        let next = f64::from(self.stops + 1) * std::f64::consts::FRAC_PI_4
-            + if self.stops == 7 {
+        let step = std::f64::consts::TAU / f64::from(self.per_turn);
+        let next = f64::from(self.stops + 1) * step
+            + if self.stops + 1 == self.per_turn {
                 2f64.to_radians()
             } else {
                 0.0
@@ -150,7 +165,7 @@ impl TurnScript {
         if self.turned >= next {
             self.stops += 1;
             self.pause_until = now + STOP_PAUSE_S;
-            if self.stops >= 8 {
+            if self.stops >= self.per_turn {
                 self.finished_at = Some(now);
             }
             return 0.0;
@@ -193,14 +208,23 @@ pub async fn run_trial(
     // KTS emulator on a pty, antenna following the true pose, scanning once per tick.
     let (reader_master, reader_slave, reader_link) = pty_link(115_200)?;
     let antenna_truth = truth.clone();
-    let antenna = Arc::new(move || {
-        antenna_truth
-            .truth()
-            .transform_point(-ANTENNA_OFFSET_M, 0.0)
-    });
-    let mut rcfg = ReaderConfig::new(reader_grid(scenario)?, antenna);
+    let model = scenario.hf_model();
+    let antenna = Arc::new(move || model.antenna_position(&antenna_truth.truth()));
+    let grid = reader_grid(scenario)?;
+    let mut rcfg = ReaderConfig::new(grid.clone(), antenna);
     rcfg.seed = seed;
-    rcfg.miss_probability = 0.1;
+    rcfg.miss_probability = model.miss_probability;
+    // The simulator's RSSI (curve and spread) from a stream of the trial seed, and the tags'
+    // placement errors from another.
+    let rssi_rng = std::sync::Mutex::new(ChaCha8Rng::seed_from_u64(seed ^ 0x4846_5253_5349));
+    rcfg.rssi = Some(Arc::new(move |d| {
+        rssi_rng
+            .lock()
+            .ok()
+            .and_then(|mut r| model.sample_rssi(d, &mut *r))
+    }));
+    let mut placement = ChaCha8Rng::seed_from_u64(seed ^ 0x4846_504C_4143);
+    rcfg.tag_offsets = model.placement_errors(grid.rows * grid.cols, &mut placement);
     let mut reader = KtsEmulator::new(rcfg);
     let reader_control = reader.lock_step();
     let reader_stop = stop.clone();
@@ -262,7 +286,8 @@ pub async fn run_trial(
     // The turn: eight 45° steps at the scenario's turn rate, pausing at each stop. Closed loop
     // on the driver's odometry, as a robot would do it.
     let rate = scenario.spec.robot.drive.max_turn_rate.clamp(0.1, 2.0);
-    let mut turn = TurnScript::new(rate);
+    let per_turn = u32::try_from(scenario.spec.params.readings_per_turn.unwrap_or(8)).unwrap_or(8);
+    let mut turn = TurnScript::new(rate, per_turn);
     // A hard stop in case the base never turns (e.g. stalled): three times the scenario's time.
     let end_s = 3.0 * scenario.spec.duration_s.max(10.0);
 
@@ -351,7 +376,7 @@ pub async fn run_trial(
             }
             rec.set_success(true);
         }
-        None => rec.set_success(false),
+        None => rec.fail("no initial pose from the turn"),
     }
     Ok(rec)
 }

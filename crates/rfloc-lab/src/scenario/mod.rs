@@ -10,11 +10,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use rfloc_sim::recorder::{write_outputs, TrialRecorder};
-use rfloc_sim::{Pipeline as ScenarioPipeline, Report, Scenario, Summary};
+use rfloc_sim::{Pipeline as ScenarioPipeline, Scenario};
 
 mod ekfslam;
 mod emitter;
-mod hfinit;
+pub(crate) mod hfinit;
 mod lockstep;
 pub(crate) mod snapshot;
 
@@ -33,8 +33,17 @@ pub fn trial_dir(out: &Path, trial: usize) -> PathBuf {
     out.join(format!("trial-{trial:02}"))
 }
 
-/// Runs every trial of a scenario and prints the report table.
-pub async fn run(path: &Path, opts: SimOptions) -> anyhow::Result<()> {
+/// What a finished run reports to the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SimOutcome {
+    pub trials: usize,
+    /// Trials that failed (goal or last waypoint not reached, a beacon not mapped, arrival
+    /// declared away from the goal, no initial pose).
+    pub failures: usize,
+}
+
+/// Runs every trial of a scenario, writes the outputs and prints the report table.
+pub async fn run(path: &Path, opts: SimOptions) -> anyhow::Result<SimOutcome> {
     let scenario =
         Scenario::load(path).with_context(|| format!("loading scenario {}", path.display()))?;
     let name = scenario.spec.name.clone();
@@ -62,10 +71,11 @@ pub async fn run(path: &Path, opts: SimOptions) -> anyhow::Result<()> {
         recs.push(rec);
     }
     eprintln!();
-    write_outputs(&out, &scenario, &recs)?;
-    let results: Vec<_> = recs.iter().map(TrialRecorder::finish).collect();
-    let summary = Summary::from_trials(&results);
-    println!("{}", Report::new(&name, &summary).table());
+    let report = write_outputs(&out, &scenario, &recs)?;
+    println!("{}", report.table());
     println!("outputs: {}", out.display());
-    Ok(())
+    Ok(SimOutcome {
+        trials,
+        failures: report.failures(),
+    })
 }

@@ -126,6 +126,12 @@ pub fn events() -> Vec<VizEvent> {
             bytes: vec![b'G', b'D', i, 0xff, 0x0a],
         });
     }
+    out.push(VizEvent::Observation {
+        stamp: stamp(1004),
+        device: "hf".into(),
+        kind: "hf_tag".into(),
+        json: "{\"uid\":\"E00401503A5BD691\",\"rssi\":7}".into(),
+    });
     out
 }
 
@@ -144,6 +150,7 @@ pub fn expected_counts() -> BTreeMap<&'static str, u64> {
         (topics::SCAN, 4),
         (topics::STATUS, 2),
         (topics::LINK, 5),
+        (topics::OBSERVATION, 1),
     ])
 }
 

@@ -1,6 +1,8 @@
 //! The `rfloc` binary as a child process, for end-to-end tests.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, dead_code)]
 
+pub mod fleet;
+
 use std::process::{Child, ExitStatus, Stdio};
 use std::thread::JoinHandle;
 use std::time::Duration;
@@ -105,10 +107,11 @@ impl Daemon {
         }
     }
 
-    /// The pose stream's JSON lines, retrying the connection while the daemon starts (5 s).
+    /// The pose stream's JSON lines, retrying the connection while the daemon starts (it
+    /// loads its learned state first; up to 30 s on a loaded machine).
     pub async fn pose_lines(&self, port: u16) -> Lines<BufReader<TcpStream>> {
         use tokio::io::AsyncBufReadExt;
-        for _ in 0..100 {
+        for _ in 0..600 {
             if let Ok(s) = TcpStream::connect(("127.0.0.1", port)).await {
                 return BufReader::new(s).lines();
             }
@@ -172,15 +175,48 @@ impl Daemon {
 }
 
 /// The next line of a pose stream before `deadline`; `None` when the stream ended, failed or
-/// the time ran out.
+/// the time ran out. Every line is checked against `docs/pose-stream.schema.json`.
 pub async fn next_line_before(
     lines: &mut Lines<BufReader<TcpStream>>,
     deadline: tokio::time::Instant,
 ) -> Option<String> {
     match tokio::time::timeout_at(deadline, lines.next_line()).await {
-        Ok(Ok(Some(line))) => Some(line),
+        Ok(Ok(Some(line))) => {
+            assert_stream_line(&line);
+            Some(line)
+        }
         _ => None,
     }
+}
+
+/// The pose stream's JSON Schema, compiled once.
+fn stream_schema() -> &'static jsonschema::Validator {
+    static SCHEMA: std::sync::OnceLock<jsonschema::Validator> = std::sync::OnceLock::new();
+    SCHEMA.get_or_init(|| {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../docs/pose-stream.schema.json");
+        let schema: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+        assert!(
+            jsonschema::meta::is_valid(&schema),
+            "the schema is not a valid JSON Schema"
+        );
+        jsonschema::validator_for(&schema).unwrap()
+    })
+}
+
+/// Panics with the schema's complaints unless `line` is a valid pose stream line.
+pub fn assert_stream_line(line: &str) {
+    let value: serde_json::Value =
+        serde_json::from_str(line).unwrap_or_else(|e| panic!("not JSON ({e}): {line}"));
+    let errors: Vec<String> = stream_schema()
+        .iter_errors(&value)
+        .map(|e| format!("{} at {}", e, e.instance_path()))
+        .collect();
+    assert!(
+        errors.is_empty(),
+        "{line}\nfails docs/pose-stream.schema.json: {errors:?}"
+    );
 }
 
 /// `key=value` of the last log line containing `needle`.

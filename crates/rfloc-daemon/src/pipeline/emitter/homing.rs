@@ -26,6 +26,18 @@ pub struct HomingConfig {
     pub navigator: NavigatorConfig,
     /// Seed of the particle filter.
     pub seed: u64,
+    /// A receiver that heard nothing reads as this level (its sensitivity, dBm) when at least
+    /// two of the four heard the emitter; `None`: every receiver must hear it.
+    pub receiver_sensitivity_dbm: Option<f64>,
+}
+
+/// The spread of a filtered estimate: square root of the largest eigenvalue of its 2×2
+/// covariance, metres.
+fn spread(c: &nalgebra::Matrix2<f64>) -> f64 {
+    let (a, b, d) = (c[(0, 0)], 0.5 * (c[(0, 1)] + c[(1, 0)]), c[(1, 1)]);
+    let mid = 0.5 * (a + d);
+    let rad = (0.25 * (a - d).powi(2) + b * b).sqrt();
+    (mid + rad).max(0.0).sqrt()
 }
 
 /// State of the pipeline between steps.
@@ -39,6 +51,10 @@ pub struct EmitterHoming {
     navigator: EmitterNavigator,
     scan: Vec<ScanBeam>,
     target: Option<Point2>,
+    /// A goal that replaces the emitter as the navigator's target (a fleet manager's order).
+    goal: Option<Point2>,
+    /// Spread of the target estimate, metres.
+    target_sigma: Option<f64>,
     last_rss_time: Option<f64>,
     rejected_rss: u64,
     /// Recent raw positions, newest last (at most [`RECENT_RAW`]).
@@ -56,6 +72,12 @@ const AGREE_RANGE_FRACTION: f64 = 0.3;
 const AGREE_MIN_FRACTION: f64 = 0.2;
 
 impl EmitterHoming {
+    /// The emitter filter's particles: hypothesised emitter positions with their weights.
+    #[must_use]
+    pub fn particles(&self) -> &[rfloc_emitter::filter::Particle] {
+        self.filter.particles()
+    }
+
     /// A pipeline for a robot starting at `start` (particles around the start, empty map).
     ///
     /// # Errors
@@ -68,6 +90,8 @@ impl EmitterHoming {
             navigator: EmitterNavigator::new(config.navigator),
             scan: Vec::new(),
             target: None,
+            goal: None,
+            target_sigma: None,
             last_rss_time: None,
             rejected_rss: 0,
             recent_raw: VecDeque::with_capacity(RECENT_RAW + 1),
@@ -98,6 +122,7 @@ impl EmitterHoming {
         match self.filter.update(pose, &measured, dt) {
             Ok(estimate) => {
                 self.target = Some(estimate.mean);
+                self.target_sigma = Some(spread(&estimate.covariance));
                 self.recent_raw.push_back((estimate.raw, measured.range_m));
                 if self.recent_raw.len() > RECENT_RAW {
                     self.recent_raw.pop_front();
@@ -156,10 +181,22 @@ impl EmitterHoming {
                 );
                 self.filter = f;
                 self.target = Some(centre);
+                self.target_sigma = Some(spread.max(0.5));
                 self.recent_raw.clear();
             }
             Err(e) => tracing::warn!(error = %e, "emitter filter re-initialisation failed"),
         }
+    }
+
+    /// Drives to `goal` instead of the emitter (`None`: the emitter again).
+    pub fn set_goal(&mut self, goal: Option<Point2>) {
+        self.goal = goal;
+    }
+
+    /// The configuration.
+    #[must_use]
+    pub fn config(&self) -> &HomingConfig {
+        &self.config
     }
 
     /// Times the filter was re-initialised.
@@ -168,41 +205,59 @@ impl EmitterHoming {
         self.reinitialisations
     }
 
-    /// Feeds one laser scan taken at `sensor` (beam angles relative to its heading).
+    /// Feeds one laser scan taken at `sensor` (beam angles relative to its heading). A
+    /// growable map first grows to hold every beam.
     pub fn observe_scan(&mut self, sensor: &Pose2, beams: Vec<ScanBeam>) {
         if self.config.navigator.use_planner {
+            let (lo, hi) = scan_box(sensor, &beams);
+            let margin = self.grid.resolution();
+            let (lo, hi) = (
+                Point2::new(lo.x - margin, lo.y - margin),
+                Point2::new(hi.x + margin, hi.y + margin),
+            );
+            let grew = self.grid.ensure_contains(&lo, &hi).is_some();
             self.grid.integrate_scan(sensor, &beams);
-            self.planning_grid = inflate(&self.grid);
+            if grew {
+                self.planning_grid = inflate(&self.grid);
+            } else {
+                inflate_region(&self.grid, &mut self.planning_grid, &lo, &hi);
+            }
         }
         self.scan = beams;
     }
 
-    /// One navigator step at time `t` and pose `pose`. The navigator is given the estimate
-    /// moved inside the map (one cell in from its edge): behind walls the RSS range is far too
-    /// long (every wall costs the signal several dB), and a goal outside the map would make the
-    /// full system give up planning and drive straight at the wall.
+    /// One navigator step at time `t` and pose `pose`. The navigator is given the filtered
+    /// estimate itself: arrival is declared only within its arrival distance of that
+    /// estimate. A growable map first grows to hold the robot and the estimate (with
+    /// [`GOAL_MARGIN_M`] around them), so a goal at any distance the radios reach can be
+    /// planned to; beyond the map's `max_cells` the navigator drives straight at it.
     pub fn command(&mut self, t: f64, pose: Pose2, bumpers: Bumpers) -> NavigationCommand {
-        let target = self.target.map(|p| self.inside_map(p));
+        if self.config.navigator.use_planner {
+            if let Some(target) = self.goal.or(self.target).filter(Point2::is_finite) {
+                let m = GOAL_MARGIN_M;
+                let lo = Point2::new(target.x.min(pose.x) - m, target.y.min(pose.y) - m);
+                let hi = Point2::new(target.x.max(pose.x) + m, target.y.max(pose.y) + m);
+                if self.grid.ensure_contains(&lo, &hi).is_some() {
+                    self.planning_grid = inflate(&self.grid);
+                }
+            }
+        }
         self.navigator.step(&NavigatorInput {
             time_s: t,
             pose,
-            target,
+            // A fleet goal is exact: no spread holds its arrival back.
+            target: self.goal.or(self.target),
+            target_sigma_m: if self.goal.is_some() { None } else { self.target_sigma },
             grid: &self.planning_grid,
             scan: &self.scan,
             bumpers,
         })
     }
 
-    fn inside_map(&self, p: Point2) -> Point2 {
-        let g = &self.config.grid;
-        let margin = 1.5 * g.resolution_m;
-        let (x0, y0) = (g.origin.x + margin, g.origin.y + margin);
-        let x1 = g.origin.x + g.width as f64 * g.resolution_m - margin;
-        let y1 = g.origin.y + g.height as f64 * g.resolution_m - margin;
-        if !self.config.navigator.use_planner || x1 <= x0 || y1 <= y0 {
-            return p;
-        }
-        Point2::new(p.x.clamp(x0, x1), p.y.clamp(y0, y1))
+    /// The occupancy grid (as the laser built it, before inflation).
+    #[must_use]
+    pub fn grid(&self) -> &OccupancyGrid {
+        &self.grid
     }
 
     /// RSS readings the pipeline could not use.
@@ -215,6 +270,67 @@ impl EmitterHoming {
     #[must_use]
     pub fn plan_count(&self) -> u64 {
         self.navigator.plan_count()
+    }
+}
+
+/// Space kept around the robot and the goal when a growable map grows for a goal, metres.
+const GOAL_MARGIN_M: f64 = 2.0;
+
+/// The box holding the sensor and every beam's end point.
+fn scan_box(sensor: &Pose2, beams: &[ScanBeam]) -> (Point2, Point2) {
+    let (mut lo, mut hi) = (
+        Point2::new(sensor.x, sensor.y),
+        Point2::new(sensor.x, sensor.y),
+    );
+    for b in beams {
+        let length = b.range_m.min(b.max_range_m);
+        if !(length.is_finite() && length >= 0.0 && b.angle_rad.is_finite()) {
+            continue;
+        }
+        let a = sensor.theta + b.angle_rad;
+        let (x, y) = (sensor.x + length * a.cos(), sensor.y + length * a.sin());
+        lo = Point2::new(lo.x.min(x), lo.y.min(y));
+        hi = Point2::new(hi.x.max(x), hi.y.max(y));
+    }
+    (lo, hi)
+}
+
+/// [`inflate`] redone for the cells of the box `[lo, hi]` and one cell around it: the only
+/// cells whose inflated value can change when the grid changed inside the box.
+fn inflate_region(grid: &OccupancyGrid, out: &mut OccupancyGrid, lo: &Point2, hi: &Point2) {
+    if out.width() != grid.width() || out.height() != grid.height() {
+        *out = inflate(grid);
+        return;
+    }
+    let r = grid.resolution();
+    let o = grid.config().origin;
+    let index = |v: f64, origin: f64, n: usize| -> usize {
+        let f = ((v - origin) / r).floor();
+        if f.is_nan() || f < 0.0 {
+            0
+        } else {
+            (f as usize).min(n.saturating_sub(1))
+        }
+    };
+    let (w, h) = (grid.width(), grid.height());
+    let x0 = index(lo.x, o.x, w).saturating_sub(1);
+    let y0 = index(lo.y, o.y, h).saturating_sub(1);
+    let x1 = (index(hi.x, o.x, w) + 1).min(w.saturating_sub(1));
+    let y1 = (index(hi.y, o.y, h) + 1).min(h.saturating_sub(1));
+    for iy in y0..=y1 {
+        for ix in x0..=x1 {
+            let c = GridCell::new(ix, iy);
+            let near_occupied =
+                (iy.saturating_sub(1)..=(iy + 1).min(h.saturating_sub(1))).any(|ny| {
+                    (ix.saturating_sub(1)..=(ix + 1).min(w.saturating_sub(1)))
+                        .any(|nx| grid.class(GridCell::new(nx, ny)) == CellClass::Occupied)
+                });
+            if near_occupied {
+                out.mark_occupied(c);
+            } else if let Some(l) = grid.log_odds(c) {
+                out.set_log_odds(c, l);
+            }
+        }
     }
 }
 

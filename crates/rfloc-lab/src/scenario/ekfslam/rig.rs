@@ -94,7 +94,11 @@ impl Rig {
             }),
             noise_seed: scenario.trial_seed(trial),
             ..EmulatorConfig::default()
-        });
+        })
+        .with_motion_hook(crate::sim::walls::wall_hook(
+            Arc::new(scenario.world.clone()),
+            scenario.spec.robot.drive.body_radius,
+        ));
         let control = emulator.lock_step();
         let robot = emulator.handle();
         tasks.push(tokio::spawn(async move {

@@ -13,12 +13,16 @@ use rand_chacha::ChaCha8Rng;
 pub use rfloc_ekfslam::wheel_travel;
 use rfloc_pose::Pose2;
 
-/// Relative per-substep wheel travel error.
+/// Relative per-substep wheel travel error, and an optional additive speed error.
 pub struct OdometrySlip {
     rng: ChaCha8Rng,
     sigma: f64,
     track_m: f64,
     substep_s: f64,
+    /// σ_v (m/s), σ_ω (rad/s) and their own generator (so the slip draws do not move).
+    velocity: Option<(f64, f64, ChaCha8Rng)>,
+    /// Encoder scale: the odometry's wheel diameter over the true one (1 = calibrated).
+    wheel_scale: f64,
 }
 
 /// The pose change of driving `ds` along an arc that turns by `dth` (midpoint heading).
@@ -26,6 +30,13 @@ pub struct OdometrySlip {
 pub fn arc(ds: f64, dth: f64) -> Pose2 {
     let half = dth / 2.0;
     Pose2::new(ds * half.cos(), ds * half.sin(), dth)
+}
+
+/// A standard normal draw (Box–Muller; 1 − u keeps the logarithm finite).
+fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
+    let u: f64 = rng.random();
+    let v: f64 = rng.random();
+    (-2.0 * (1.0 - u).ln()).sqrt() * (std::f64::consts::TAU * v).cos()
 }
 
 impl OdometrySlip {
@@ -37,21 +48,67 @@ impl OdometrySlip {
             sigma,
             track_m,
             substep_s,
+            velocity: None,
+            wheel_scale: 1.0,
         }
     }
 
+    /// Wheels of diameter `true_m` under odometry that assumes `nominal_m`: every wheel travel
+    /// the encoders report is `nominal_m / true_m` times the true one.
+    #[must_use]
+    pub fn with_wheel_diameter(mut self, true_m: f64, nominal_m: f64) -> Self {
+        if true_m > 0.0 && nominal_m > 0.0 {
+            self.wheel_scale = nominal_m / true_m;
+        }
+        self
+    }
+
+    /// Adds an error of the driven speed and turn rate, N(0, σ_v) m/s and N(0, σ_ω) rad/s over
+    /// every increment in which the wheels turned (seed 003 Table 3.1), drawn from a generator
+    /// seeded with `seed`.
+    #[must_use]
+    pub fn with_velocity_noise(mut self, sigma_v: f64, sigma_omega: f64, seed: u64) -> Self {
+        self.velocity = (sigma_v > 0.0 || sigma_omega > 0.0)
+            .then(|| (sigma_v, sigma_omega, ChaCha8Rng::seed_from_u64(seed)));
+        self
+    }
+
     fn gaussian(&mut self) -> f64 {
-        // Box–Muller; 1 − u keeps the logarithm finite.
-        let u: f64 = self.rng.random();
-        let v: f64 = self.rng.random();
-        (-2.0 * (1.0 - u).ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+        gaussian(&mut self.rng)
     }
 
     /// The increment the encoders report for a ground increment `delta` that took `dt`
     /// seconds. An increment without wheel motion is returned unchanged and draws nothing.
     pub fn apply(&mut self, delta: &Pose2, dt: f64) -> Pose2 {
+        let scaled;
+        let delta = if (self.wheel_scale - 1.0).abs() > 1e-12 {
+            let k = self.wheel_scale;
+            scaled = arc(
+                k * delta.x.hypot(delta.y).copysign(delta.x),
+                k * delta.theta,
+            );
+            &scaled
+        } else {
+            delta
+        };
         let (sl, sr) = wheel_travel(delta, self.track_m);
-        if (sl.abs() < 1e-9 && sr.abs() < 1e-9) || self.sigma <= 0.0 {
+        if sl.abs() < 1e-9 && sr.abs() < 1e-9 {
+            return *delta;
+        }
+        let slipped = self.slip(delta, dt, sl, sr);
+        match &mut self.velocity {
+            Some((sv, sw, rng)) => {
+                let dv = gaussian(rng) * *sv * dt;
+                let dw = gaussian(rng) * *sw * dt;
+                let d = slipped.x.hypot(slipped.y).copysign(slipped.x) + dv;
+                arc(d, slipped.theta + dw)
+            }
+            None => slipped,
+        }
+    }
+
+    fn slip(&mut self, delta: &Pose2, dt: f64, sl: f64, sr: f64) -> Pose2 {
+        if self.sigma <= 0.0 {
             return *delta;
         }
         // n substeps of equal travel: the relative errors add up to σ·s/√n.
@@ -90,6 +147,40 @@ mod tests {
         let want = 0.05 * 0.03 / 10f64.sqrt() / 2f64.sqrt();
         let got = (sq / f64::from(n)).sqrt();
         assert!((got / want - 1.0).abs() < 0.05, "{got} vs {want}");
+    }
+
+    #[test]
+    fn velocity_noise_has_its_spread_and_leaves_the_slip_draws_alone() {
+        let step = arc(0.03, 0.0);
+        let mut plain = OdometrySlip::new(4, 0.05, 0.331, 0.01);
+        let mut noisy = OdometrySlip::new(4, 0.05, 0.331, 0.01).with_velocity_noise(0.02, 0.01, 9);
+        let mut exact = OdometrySlip::new(4, 0.0, 0.331, 0.01).with_velocity_noise(0.02, 0.01, 9);
+        let n = 20_000;
+        let (mut sq_d, mut sq_th) = (0.0, 0.0);
+        for _ in 0..n {
+            let a = plain.apply(&step, 0.1);
+            let b = noisy.apply(&step, 0.1);
+            // Same slip draws: the difference is the velocity noise only (small).
+            assert!((a.x - b.x).abs() < 0.02 * 0.1 * 6.0, "{a:?} {b:?}");
+            let c = exact.apply(&step, 0.1);
+            sq_d += (c.x.hypot(c.y) - 0.03).powi(2);
+            sq_th += c.theta.powi(2);
+        }
+        let sd = (sq_d / f64::from(n)).sqrt();
+        let sth = (sq_th / f64::from(n)).sqrt();
+        assert!((sd / 0.002 - 1.0).abs() < 0.05, "{sd}");
+        assert!((sth / 0.001 - 1.0).abs() < 0.05, "{sth}");
+        // A standstill stays exact.
+        let zero = Pose2::new(0.0, 0.0, 0.0);
+        assert_eq!(exact.apply(&zero, 0.1), zero);
+    }
+
+    #[test]
+    fn larger_wheels_than_calibrated_make_odometry_short() {
+        let mut s = OdometrySlip::new(1, 0.0, 0.331, 0.01).with_wheel_diameter(0.2145, 0.195);
+        let d = s.apply(&arc(0.11, 0.01), 0.1);
+        assert!((d.x.hypot(d.y) - 0.1).abs() < 1e-9, "{d:?}");
+        assert!((d.theta - 0.01 / 1.1).abs() < 1e-9, "{d:?}");
     }
 
     #[test]

@@ -52,8 +52,13 @@ pub const TICK_S: f64 = 0.1;
 pub const ARRIVED_HOLD_S: f64 = 10.0;
 /// The navigator's stop distance from its estimate, metres.
 pub const ARRIVAL_DISTANCE_M: f64 = 0.3;
-/// Side of the square map centred on the start, metres.
+/// Largest spread of the filtered estimate at which the navigator declares arrival, metres.
+pub const ARRIVAL_MAX_SIGMA_M: f64 = 1.0;
+/// Initial side of the square map centred on the start, metres; the map grows with the
+/// explored area and the goal (up to [`MAP_MAX_SIDE_M`] squared).
 pub const MAP_SIDE_M: f64 = 12.0;
+/// Largest map, as the side of a square of the same number of cells, metres.
+pub const MAP_MAX_SIDE_M: f64 = 400.0;
 
 /// What one run asks for.
 #[derive(Debug, Clone)]
@@ -101,7 +106,11 @@ fn homing_config(
         .world
         .emitter
         .context("the scenario's world has no emitter")?;
-    let rss = calibrate(&scenario.emitter_model(), emitter.power_dbm)?;
+    let mut rss = calibrate(&scenario.emitter_model(), emitter.power_dbm)?;
+    // `[mismatch] scale`: a calibration whose ranges are `scale` times the true ones.
+    if let Some(m) = scenario.spec.mismatch {
+        rss.a1_dbm_at_1m += 10.0 * rss.a2_path_loss_exponent * m.scale.log10();
+    }
     let params = &scenario.spec.params;
     let seed_filter = ParticleFilterConfig::default();
     let filter = ParticleFilterConfig {
@@ -114,11 +123,14 @@ fn homing_config(
     };
     let resolution = params.grid_cell_m.unwrap_or(0.2);
     let cells = (MAP_SIDE_M / resolution).round().max(1.0) as usize;
+    let max_side = (MAP_MAX_SIDE_M / resolution).round().max(1.0) as usize;
     let grid = OccupancyGridConfig {
         resolution_m: resolution,
         width: cells,
         height: cells,
         origin: Point2::new(start.x - MAP_SIDE_M / 2.0, start.y - MAP_SIDE_M / 2.0),
+        growable: true,
+        max_cells: max_side.saturating_mul(max_side).max(cells * cells),
         ..OccupancyGridConfig::default()
     };
     let body = scenario.spec.robot.drive.body_radius;
@@ -130,6 +142,9 @@ fn homing_config(
         // The seed stops within 50 cm of the emitter; the filtered estimate is a few decimetres
         // off near the end, so the robot aims closer to its estimate than that.
         arrival_distance_m: ARRIVAL_DISTANCE_M,
+        // Arrive only at an estimate that has converged (a filter that restarted, or one
+        // still spread over the start disc, is not a place to stop).
+        arrival_max_sigma_m: ARRIVAL_MAX_SIGMA_M,
         ..NavigatorConfig::default()
     };
     Ok(HomingConfig {
@@ -138,6 +153,8 @@ fn homing_config(
         grid,
         navigator,
         seed: seed ^ 0x5046_5345_4544, // "PFSEED"
+        // The receivers' data-sheet sensitivity: one or two that hear nothing read as that.
+        receiver_sensitivity_dbm: Some(scenario.emitter_model().sensitivity_dbm),
     })
 }
 

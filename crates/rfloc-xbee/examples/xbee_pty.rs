@@ -1,7 +1,7 @@
 //! Serves the coordinator emulator on a pseudo-terminal for a peer host library:
 //!
 //! ```text
-//! cargo run -p rfloc-xbee --features emulator --example serve_pty -- [1|2] [zigbee|802.15.4] [LINK]
+//! cargo run -p rfloc-xbee --features emulator --example xbee_pty -- [1|2] [zigbee|802.15.4] [LINK]
 //! ```
 //!
 //! API mode (default 2) and firmware flavour (default zigbee; 802.15.4 also switches the ND

@@ -1,7 +1,7 @@
 //! Serves the Pioneer emulator on a pseudo-terminal for a peer client (ARIA, P2OS):
 //!
 //! ```text
-//! cargo run -p rfloc-aria --features emulator --example serve_pty -- [LINK]
+//! cargo run -p rfloc-aria --features emulator --example aria_pty -- [LINK]
 //! ```
 //!
 //! A `p3dx-sh` at the origin in real time. Prints `PTY <slave path>` once it serves, makes

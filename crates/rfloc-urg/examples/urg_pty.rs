@@ -1,7 +1,7 @@
 //! Serves the URG emulator on a pseudo-terminal for a peer host library:
 //!
 //! ```text
-//! cargo run -p rfloc-urg --features emulator --example serve_pty -- [LINK]
+//! cargo run -p rfloc-urg --features emulator --example urg_pty -- [LINK]
 //! ```
 //!
 //! The emulated URG-04LX sees a wall 2 m ahead across ±60°. Prints `PTY <slave path>` once it
