@@ -38,10 +38,6 @@ use crate::tagmap::{
 pub struct JointConfig {
     /// Exploration steps per chunk of the forward pass.
     pub chunk: usize,
-    /// Localise-then-map iterations per chunk.
-    pub chunk_iterations: usize,
-    /// Chunks smoothed together in the forward pass (the current one and those before it).
-    pub window: usize,
     /// Rounds over the whole trajectory after the forward pass.
     pub rounds: usize,
     /// Odometry increment noise: σ of translation, constant (m) and per metre moved.
@@ -58,24 +54,32 @@ pub struct JointConfig {
     pub step_theta: f64,
     /// A factor's information is multiplied by this (neighbouring poses share map errors).
     pub factor_weight: f64,
+    /// σ added to a factor's spread for the map's own error (m, rad).
+    pub floor_xy: f64,
+    pub floor_theta: f64,
     /// Mahalanobis distance beyond which a factor is down-weighted (Huber).
     pub huber: f64,
+    /// Tags that place a pose in the forward pass: position σ at most this (m) and read in
+    /// at least this many snapshots.
+    pub max_tag_sigma: f64,
+    pub min_tag_reads: usize,
     /// A pose gets a factor when its snapshot read at least this many mapped tags.
     pub min_mapped: usize,
     /// Gauss–Newton iterations per smoothing.
     pub gauss_newton: usize,
-    /// Tags within the reach plus this of a chunk's poses, or of a window pose that moved more
-    /// than `relocate_shift`, are placed again after the chunk (m).
-    pub relocate_margin: f64,
-    pub relocate_shift: f64,
+    /// After this many factors rejected in a row, the next one is taken (the pose is lost).
+    pub relock_after: usize,
+    /// The learned frame is the one in which the first this many poses lie on their odometry.
+    pub anchor_steps: usize,
+    /// Mahalanobis distance beyond which a factor is rejected (it disagrees with the pose
+    /// predicted from the odometry by more than their uncertainties allow).
+    pub gate: f64,
 }
 
 impl Default for JointConfig {
     fn default() -> Self {
         Self {
             chunk: 250,
-            window: 6,
-            chunk_iterations: 2,
             rounds: 2,
             odo_trans_abs: 0.003,
             odo_trans_rel: 0.02,
@@ -86,12 +90,17 @@ impl Default for JointConfig {
             step_xy: 0.04,
             search_theta: 0.12,
             step_theta: 0.04,
-            factor_weight: 0.5,
+            factor_weight: 1.0,
+            floor_xy: 0.04,
+            floor_theta: 0.15,
             huber: 2.0,
             min_mapped: 3,
+            max_tag_sigma: 0.08,
+            min_tag_reads: 6,
             gauss_newton: 6,
-            relocate_margin: 0.5,
-            relocate_shift: 0.02,
+            gate: 4.0,
+            anchor_steps: 30,
+            relock_after: 25,
         }
     }
 }
@@ -108,6 +117,10 @@ pub struct JointReport {
     pub mean_correction_m: f64,
     /// Largest distance of the final poses from the odometry poses, m.
     pub max_correction_m: f64,
+    /// Factors the gate rejected in the forward pass.
+    pub rejected: usize,
+    /// Times the forward filter took a factor after `relock_after` rejections in a row.
+    pub relocks: usize,
     /// Mean change of the poses in the last round, m.
     pub last_round_change_m: f64,
 }
@@ -156,110 +169,59 @@ pub fn learn_jointly(
     }
     let mut poses = odometry.clone();
     let mut located: Vec<Option<MappedTag>> = vec![None; mapper.tag_count()];
-    // The chunk in which each tag was first placed.
-    let mut born: Vec<usize> = vec![usize::MAX; mapper.tag_count()];
+    let mut factors: Vec<Option<Factor>> = vec![None; n];
     let mut work = FactorWork::default();
     let chunk = joint.chunk.max(1);
+
+    // Forward pass: a Kalman filter on the pose (odometry prediction, map factor update,
+    // gated), the map of everything placed before the chunk; then the chunk's tags placed.
+    let mut cov = Matrix3::<f64>::zeros();
     let mut start = 0;
-    let mut k_chunk: usize = 0;
     while start < n {
         let end = (start + chunk).min(n);
-        if start > 0 {
-            for i in start..end {
-                if let (Some(prev), Some(u)) = (poses.get(i - 1).copied(), increments.get(i - 1)) {
-                    if let Some(p) = poses.get_mut(i) {
-                        *p = prev.compose(u);
-                    }
+        let map = mapper.build_from(
+            located
+                .iter()
+                .flatten()
+                .filter(|t| t.sigma <= joint.max_tag_sigma && t.reads >= joint.min_tag_reads)
+                .cloned(),
+        );
+        filter_steps(
+            &map,
+            &snapshots,
+            &increments,
+            start..end,
+            &mut poses,
+            &mut cov,
+            &mut factors,
+            joint,
+            &mut work,
+            &mut report,
+        );
+        // Place the tags the chunk read, from every pose so far.
+        let index = mapper.index(poses.get(..end).unwrap_or(&[]));
+        let mut affected = vec![false; located.len()];
+        for ks in read_by.get(start..end).unwrap_or(&[]) {
+            for &k in ks {
+                if let Some(a) = affected.get_mut(k) {
+                    *a = true;
                 }
             }
         }
-        // The window smoothed with this chunk: the last `window` chunks, the pose before them
-        // fixed. Its poses are placed by the tags mapped before the window only: poses in new
-        // territory follow the odometry between two sightings of old tags, and the tags they
-        // mapped move with them.
-        let first_chunk = k_chunk
-            .saturating_sub(joint.window.max(1) - 1)
-            .max(k_chunk.min(1));
-        let w_start = first_chunk * chunk;
-        for _ in 0..joint.chunk_iterations.max(1) {
-            let before: Vec<Pose2> = poses.get(w_start..end).unwrap_or(&[]).to_vec();
-            if first_chunk > 0 {
-                let old = mapper.build_from(
-                    located
-                        .iter()
-                        .zip(&born)
-                        .filter(|(_, b)| **b < first_chunk)
-                        .filter_map(|(t, _)| t.clone()),
-                );
-                let fixed = w_start - 1;
-                let factors: Vec<Option<Factor>> = std::iter::once(None)
-                    .chain((w_start..end).map(|i| {
-                        let obs = old.observe(snapshots.get(i)?);
-                        factor(&old, &obs, poses.get(i)?, joint, &mut work)
-                    }))
-                    .collect();
-                if let (Some(p), Some(info), Some(incr)) = (
-                    poses.get_mut(fixed..end),
-                    odo_info.get(fixed..end.saturating_sub(1)),
-                    increments.get(fixed..end.saturating_sub(1)),
-                ) {
-                    smooth(p, incr, info, &factors, joint);
-                }
-            }
-            // Place again the tags read in the chunk, and those near window poses that moved.
-            let index = mapper.index(poses.get(..end).unwrap_or(&[]));
-            let moved: Vec<Pose2> = poses
-                .get(w_start..end)
-                .unwrap_or(&[])
-                .iter()
-                .zip(&before)
-                .enumerate()
-                .filter(|(i, (a, b))| w_start + i >= start || a.distance(b) > joint.relocate_shift)
-                .map(|(_, (a, _))| *a)
-                .collect();
-            let near = NearPoses::new(&moved, mapper.reach() + joint.relocate_margin);
-            let mut affected = vec![false; located.len()];
-            for ks in read_by.get(start..end).unwrap_or(&[]) {
-                for &k in ks {
-                    if let Some(a) = affected.get_mut(k) {
-                        *a = true;
-                    }
-                }
-            }
-            for (a, t) in affected.iter_mut().zip(&located) {
-                if let Some(t) = t {
-                    *a |= near.contains(t.x, t.y);
-                }
-            }
-            for (k, ((slot, hit), b)) in located
-                .iter_mut()
-                .zip(&affected)
-                .zip(born.iter_mut())
-                .enumerate()
-            {
-                if *hit {
-                    let warm = slot.as_ref().map(|t| (t.x, t.y));
-                    *slot = mapper.locate_tag(k, &index, warm).or(slot.take());
-                    if slot.is_some() && *b == usize::MAX {
-                        *b = k_chunk;
-                    }
-                }
+        for (k, (slot, hit)) in located.iter_mut().zip(&affected).enumerate() {
+            if *hit {
+                let warm = slot.as_ref().map(|t| (t.x, t.y));
+                *slot = mapper.locate_tag(k, &index, warm).or(slot.take());
             }
         }
         report.chunks += 1;
-        k_chunk += 1;
         start = end;
     }
-    // Rounds over everything.
-    for _ in 0..joint.rounds {
+    report.factors = factors.iter().flatten().count();
+    // Rounds: smooth the whole chain with the factors, place every tag again, and compute
+    // the factors again on the new map (gated against the smoothed poses).
+    for round in 0..joint.rounds {
         let before = poses.clone();
-        let map = mapper.build(&located);
-        let factors: Vec<Option<Factor>> = poses
-            .iter()
-            .zip(&snapshots)
-            .map(|(p, s)| factor(&map, &map.observe(s), p, joint, &mut work))
-            .collect();
-        report.factors = factors.iter().flatten().count();
         smooth(&mut poses, &increments, &odo_info, &factors, joint);
         let index = mapper.index(&poses);
         for (k, slot) in located.iter_mut().enumerate() {
@@ -276,6 +238,35 @@ pub fn learn_jointly(
                 .sum::<f64>()
                 / n as f64;
         }
+        if round + 1 < joint.rounds {
+            let map = mapper.build(&located);
+            let gate = joint.gate * joint.gate;
+            for ((slot, p), s) in factors.iter_mut().zip(&poses).zip(&snapshots) {
+                *slot = factor(&map, &map.observe(s), p, joint, &mut work).filter(|f| {
+                    let e = Vector3::new(
+                        f.mean.x - p.x,
+                        f.mean.y - p.y,
+                        angle_diff(f.mean.theta, p.theta),
+                    );
+                    (e.transpose() * f.info * e).x <= gate
+                });
+            }
+            report.factors = factors.iter().flatten().count();
+        }
+    }
+    // The frame: the rigid motion that puts the first `anchor_steps` poses on their odometry
+    // (which has not drifted yet there), applied to the poses and the tags.
+    let m = joint.anchor_steps.clamp(1, n);
+    if let (Some(p), Some(o)) = (poses.get(..m), odometry.get(..m)) {
+        let frame = align(p, o);
+        for q in &mut poses {
+            *q = frame.compose(q);
+        }
+        for t in located.iter_mut().flatten() {
+            let (x, y) = frame.transform_point(t.x, t.y);
+            t.x = x;
+            t.y = y;
+        }
     }
     let corrections: Vec<f64> = poses
         .iter()
@@ -288,6 +279,145 @@ pub fn learn_jointly(
     }
     report.max_correction_m = corrections.iter().copied().fold(0.0, f64::max);
     (mapper.build(&located), poses, report)
+}
+
+/// The forward filter over `range`: each pose predicted from the one before and its odometry
+/// increment (covariance `cov` propagated), then updated with its factor on `map` unless the
+/// gate rejects it; accepted factors are kept in `factors`.
+#[allow(clippy::too_many_arguments)]
+fn filter_steps(
+    map: &TagMap,
+    snapshots: &[&Snapshot],
+    increments: &[Pose2],
+    range: std::ops::Range<usize>,
+    poses: &mut [Pose2],
+    cov: &mut Matrix3<f64>,
+    factors: &mut [Option<Factor>],
+    joint: &JointConfig,
+    work: &mut FactorWork,
+    report: &mut JointReport,
+) {
+    for i in range {
+        if i > 0 {
+            let (Some(prev), Some(u)) = (poses.get(i - 1).copied(), increments.get(i - 1))
+            else {
+                continue;
+            };
+            let (s, c) = prev.theta.sin_cos();
+            let f = Matrix3::new(
+                1.0,
+                0.0,
+                -s * u.x - c * u.y,
+                0.0,
+                1.0,
+                c * u.x - s * u.y,
+                0.0,
+                0.0,
+                1.0,
+            );
+            let g = Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
+            let q = odometry_information(u, joint)
+                .try_inverse()
+                .unwrap_or_else(Matrix3::zeros);
+            *cov = f * *cov * f.transpose() + g * q * g.transpose();
+            if let Some(p) = poses.get_mut(i) {
+                *p = prev.compose(u);
+            }
+        }
+        let (Some(pred), Some(snap)) = (poses.get(i).copied(), snapshots.get(i)) else {
+            continue;
+        };
+        let obs = map.observe(snap);
+        let Some(fac) = factor(map, &obs, &pred, joint, work) else {
+            continue;
+        };
+        let Some(r) = fac.info.try_inverse() else {
+            continue;
+        };
+        let e = Vector3::new(
+            fac.mean.x - pred.x,
+            fac.mean.y - pred.y,
+            angle_diff(fac.mean.theta, pred.theta),
+        );
+        let Some(s_inv) = (*cov + r).try_inverse() else {
+            continue;
+        };
+        let mut s_inv = s_inv;
+        if (e.transpose() * s_inv * e).x > joint.gate * joint.gate {
+            report.rejected += 1;
+            work.rejected_streak += 1;
+            if work.rejected_streak < joint.relock_after.max(1) {
+                continue;
+            }
+            // The map has disagreed with the prediction for a while: the prediction is lost
+            // (it drifted beyond the gate). Take the map's word for it.
+            *cov += r * 100.0;
+            let Some(inv) = (*cov + r).try_inverse() else {
+                continue;
+            };
+            s_inv = inv;
+            report.relocks += 1;
+        }
+        work.rejected_streak = 0;
+        let k = *cov * s_inv;
+        let d = k * e;
+        if let Some(p) = poses.get_mut(i) {
+            *p = Pose2::new(pred.x + d.x, pred.y + d.y, pred.theta + d.z);
+        }
+        *cov = (Matrix3::identity() - k) * *cov;
+        *cov = 0.5 * (*cov + cov.transpose());
+        if let Some(slot) = factors.get_mut(i) {
+            *slot = Some(fac);
+        }
+    }
+}
+
+/// TEMP debug: the forward filter on a fixed map.
+#[doc(hidden)]
+pub fn debug_filter(map: &TagMap, samples: &[(&Snapshot, Pose2)], joint: &JointConfig) -> (Vec<Pose2>, usize) {
+    let snapshots: Vec<&Snapshot> = samples.iter().map(|(s, _)| *s).collect();
+    let mut poses: Vec<Pose2> = samples.iter().map(|(_, p)| *p).collect();
+    let increments: Vec<Pose2> = poses.windows(2).map(|w| w[1].relative_to(&w[0])).collect();
+    let mut cov = Matrix3::zeros();
+    let mut factors = vec![None; poses.len()];
+    let mut report = JointReport::default();
+    let mut work = FactorWork::default();
+    let n = poses.len();
+    filter_steps(map, &snapshots, &increments, 0..n, &mut poses, &mut cov, &mut factors, joint, &mut work, &mut report);
+    (poses, report.rejected)
+}
+
+/// The rigid motion `T` (as a pose) that minimises `Σ |T ∘ from_i − to_i|²` over the positions,
+/// with the rotation taken from the positions when they spread more than 0.5 m, otherwise from
+/// the mean heading difference.
+fn align(from: &[Pose2], to: &[Pose2]) -> Pose2 {
+    #[allow(clippy::cast_precision_loss)]
+    let k = from.len().max(1) as f64;
+    let mean = |v: &[Pose2]| {
+        (
+            v.iter().map(|p| p.x).sum::<f64>() / k,
+            v.iter().map(|p| p.y).sum::<f64>() / k,
+        )
+    };
+    let ((fx, fy), (tx, ty)) = (mean(from), mean(to));
+    let (mut sxx, mut sxy, mut spread) = (0.0, 0.0, 0.0_f64);
+    for (a, b) in from.iter().zip(to) {
+        let (ax, ay, bx, by) = (a.x - fx, a.y - fy, b.x - tx, b.y - ty);
+        sxx += ax * bx + ay * by;
+        sxy += ax * by - ay * bx;
+        spread = spread.max(ax.hypot(ay));
+    }
+    let theta = if spread > 0.5 {
+        sxy.atan2(sxx)
+    } else {
+        let (s, c) = from.iter().zip(to).fold((0.0, 0.0), |(s, c), (a, b)| {
+            let d = angle_diff(b.theta, a.theta);
+            (s + d.sin(), c + d.cos())
+        });
+        f64::atan2(s, c)
+    };
+    let (s, c) = theta.sin_cos();
+    Pose2::new(tx - (c * fx - s * fy), ty - (s * fx + c * fy), theta)
 }
 
 /// Information (inverse covariance) of an odometry increment.
@@ -308,6 +438,8 @@ struct FactorWork {
     candidates: Vec<Pose2>,
     scores: Vec<(f64, f64)>,
     scratch: LikelihoodScratch,
+    /// Factors the forward filter's gate rejected in a row.
+    rejected_streak: usize,
 }
 
 /// The poses of a grid of `(2·nx + 1)² (2·nt + 1)` around `c`.
@@ -364,48 +496,22 @@ fn factor(
         }
         c = best;
     }
-    // Fine grid: a quarter of the coarse steps, two steps either side.
+    // The spread: the coarse grid's normalised likelihood about its best cell, plus the
+    // grid's resolution.
+    let (_, spread) = moments(&w.candidates, &w.scores, &best)?;
+    // The mean: a fine grid, a quarter of the coarse steps, two steps either side.
     let (fs, ft) = (j.step_xy / 4.0, j.step_theta / 4.0);
     grid(&best, fs, 2, ft, 2, &mut w.candidates);
     map.read_log_likelihoods(&w.candidates, obs, &mut w.scratch, &mut w.scores);
-    let top = w
-        .scores
-        .iter()
-        .map(|s| s.0)
-        .fold(f64::NEG_INFINITY, f64::max);
-    if !top.is_finite() {
-        return None;
-    }
-    let (mut sw, mut m) = (0.0, Vector3::zeros());
-    let offsets: Vec<(Vector3<f64>, f64)> = w
-        .candidates
-        .iter()
-        .zip(&w.scores)
-        .map(|(p, s)| {
-            let e = Vector3::new(p.x - best.x, p.y - best.y, angle_diff(p.theta, best.theta));
-            (e, (s.0 - top).exp())
-        })
-        .collect();
-    for (e, wt) in &offsets {
-        sw += wt;
-        m += *wt * e;
-    }
-    if sw <= 0.0 {
-        return None;
-    }
-    m /= sw;
-    let mut cov = Matrix3::zeros();
-    for (e, wt) in &offsets {
-        let d = e - m;
-        cov += (*wt / sw) * d * d.transpose();
-    }
-    // The grid's own resolution, and the spread of the coarse search when the fine window
-    // holds all the weight at one edge.
-    cov += Matrix3::from_diagonal(&Vector3::new(
-        fs * fs / 12.0 + 1e-6,
-        fs * fs / 12.0 + 1e-6,
-        ft * ft / 12.0 + 1e-6,
-    ));
+    let (m, _) = moments(&w.candidates, &w.scores, &best)?;
+    let (cs, ct) = (j.step_xy, j.step_theta);
+    // The map's own error (the likelihood's shape assumes exact tag positions): a floor.
+    let cov = spread
+        + Matrix3::from_diagonal(&Vector3::new(
+            cs * cs / 12.0 + j.floor_xy * j.floor_xy,
+            cs * cs / 12.0 + j.floor_xy * j.floor_xy,
+            ct * ct / 12.0 + j.floor_theta * j.floor_theta,
+        ));
     let info = cov.try_inverse()? * j.factor_weight.max(0.0);
     Some(Factor {
         mean: Pose2::new(best.x + m.x, best.y + m.y, best.theta + m.z),
@@ -413,9 +519,96 @@ fn factor(
     })
 }
 
-/// Gauss–Newton on a chain: `poses[0]` fixed, odometry factors between neighbours
+/// Mean offset from `about` and covariance of the normalised likelihoods `scores` of
+/// `candidates`.
+fn moments(
+    candidates: &[Pose2],
+    scores: &[(f64, f64)],
+    about: &Pose2,
+) -> Option<(Vector3<f64>, Matrix3<f64>)> {
+    let top = scores
+        .iter()
+        .map(|s| s.0)
+        .fold(f64::NEG_INFINITY, f64::max);
+    if !top.is_finite() {
+        return None;
+    }
+    let (mut sw, mut m, mut mm) = (0.0, Vector3::zeros(), Matrix3::zeros());
+    for (p, s) in candidates.iter().zip(scores) {
+        let e = Vector3::new(
+            p.x - about.x,
+            p.y - about.y,
+            angle_diff(p.theta, about.theta),
+        );
+        let wt = (s.0 - top).exp();
+        sw += wt;
+        m += wt * e;
+        mm += wt * e * e.transpose();
+    }
+    if sw <= 0.0 {
+        return None;
+    }
+    m /= sw;
+    let cov = mm / sw - m * m.transpose();
+    Some((m, 0.5 * (cov + cov.transpose())))
+}
+
+/// Residual of the odometry factor between `a` and `b` (increment `u`), in `a`'s frame.
+fn odometry_residual(a: &Pose2, b: &Pose2, u: &Pose2) -> Vector3<f64> {
+    let (s, c) = a.theta.sin_cos();
+    let (dx, dy) = (b.x - a.x, b.y - a.y);
+    Vector3::new(
+        c * dx + s * dy - u.x,
+        -s * dx + c * dy - u.y,
+        angle_diff(b.theta - a.theta, u.theta),
+    )
+}
+
+/// Residual of a pose factor, and its Huber weight.
+fn factor_residual(p: &Pose2, f: &Factor, huber: f64) -> (Vector3<f64>, f64, f64) {
+    let e = Vector3::new(
+        p.x - f.mean.x,
+        p.y - f.mean.y,
+        angle_diff(p.theta, f.mean.theta),
+    );
+    let d = (e.transpose() * f.info * e).x.max(0.0).sqrt();
+    if d > huber {
+        (e, huber / d, huber * (2.0 * d - huber))
+    } else {
+        (e, 1.0, d * d)
+    }
+}
+
+/// The cost the smoothing minimises (odometry χ² plus Huber-robust factor terms).
+fn chain_cost(
+    poses: &[Pose2],
+    increments: &[Pose2],
+    odo_info: &[Matrix3<f64>],
+    factors: &[Option<Factor>],
+    huber: f64,
+) -> f64 {
+    let odo: f64 = poses
+        .windows(2)
+        .zip(increments)
+        .zip(odo_info)
+        .filter_map(|((w, u), info)| {
+            let e = odometry_residual(w.first()?, w.get(1)?, u);
+            Some((e.transpose() * info * e).x)
+        })
+        .sum();
+    let fac: f64 = poses
+        .iter()
+        .zip(factors)
+        .skip(1)
+        .filter_map(|(p, f)| Some(factor_residual(p, f.as_ref()?, huber).2))
+        .sum();
+    odo + fac
+}
+
+/// Levenberg–Marquardt on a chain: `poses[0]` fixed, odometry factors between neighbours
 /// (`increments[i]`, information `odo_info[i]` between `i` and `i + 1`), and the unary
-/// `factors` (Huber-weighted). The normal equations are block tridiagonal and solved exactly.
+/// `factors` (Huber-weighted). The normal equations are block tridiagonal and solved exactly;
+/// a step is taken only when it lowers the cost.
 fn smooth(
     poses: &mut [Pose2],
     increments: &[Pose2],
@@ -430,6 +623,8 @@ fn smooth(
     let mut diag = vec![Matrix3::<f64>::zeros(); m];
     let mut off = vec![Matrix3::<f64>::zeros(); m - 1];
     let mut grad = vec![Vector3::<f64>::zeros(); m];
+    let mut cost = chain_cost(poses, increments, odo_info, factors, j.huber);
+    let mut lambda = 1e-4;
     for _ in 0..j.gauss_newton.max(1) {
         diag.iter_mut().for_each(|d| *d = Matrix3::zeros());
         off.iter_mut().for_each(|d| *d = Matrix3::zeros());
@@ -446,11 +641,7 @@ fn smooth(
             };
             let (s, c) = a.theta.sin_cos();
             let (dx, dy) = (b.x - a.x, b.y - a.y);
-            let e = Vector3::new(
-                c * dx + s * dy - u.x,
-                -s * dx + c * dy - u.y,
-                angle_diff(b.theta - a.theta, u.theta),
-            );
+            let e = odometry_residual(a, b, u);
             let ja = Matrix3::new(
                 -c,
                 -s,
@@ -481,17 +672,7 @@ fn smooth(
             let (Some(f), Some(p)) = (f, poses.get(i)) else {
                 continue;
             };
-            let e = Vector3::new(
-                p.x - f.mean.x,
-                p.y - f.mean.y,
-                angle_diff(p.theta, f.mean.theta),
-            );
-            let mahalanobis = (e.transpose() * f.info * e).x.max(0.0).sqrt();
-            let weight = if mahalanobis > j.huber {
-                j.huber / mahalanobis
-            } else {
-                1.0
-            };
+            let (e, weight, _) = factor_residual(p, f, j.huber);
             if let (Some(d), Some(g)) = (diag.get_mut(i), grad.get_mut(i)) {
                 *d += weight * f.info;
                 *g += weight * f.info * e;
@@ -504,17 +685,41 @@ fn smooth(
             *o = Matrix3::zeros();
             *g = Vector3::zeros();
         }
-        let Some(step) = solve_block_tridiagonal(&diag, &off, &grad) else {
+        // Damped steps until one lowers the cost.
+        let mut accepted = None;
+        for _ in 0..8 {
+            let damped: Vec<Matrix3<f64>> = diag
+                .iter()
+                .map(|d| d + Matrix3::from_diagonal(&d.diagonal()) * lambda)
+                .collect();
+            let Some(step) = solve_block_tridiagonal(&damped, &off, &grad) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let trial: Vec<Pose2> = poses
+                .iter()
+                .zip(&step)
+                .map(|(p, d)| Pose2::new(p.x - d.x, p.y - d.y, p.theta - d.z))
+                .collect();
+            let c = chain_cost(&trial, increments, odo_info, factors, j.huber);
+            if c < cost {
+                let largest = step
+                    .iter()
+                    .map(|d| d.x.abs().max(d.y.abs()).max(d.z.abs()))
+                    .fold(0.0, f64::max);
+                accepted = Some((trial, c, largest));
+                lambda = (lambda * 0.1).max(1e-9);
+                break;
+            }
+            lambda *= 10.0;
+        }
+        let Some((trial, c, largest)) = accepted else {
             return;
         };
-        let mut largest = 0.0_f64;
-        for (p, d) in poses.iter_mut().zip(&step) {
-            p.x -= d.x;
-            p.y -= d.y;
-            p.theta -= d.z;
-            largest = largest.max(d.x.abs()).max(d.y.abs()).max(d.z.abs());
-        }
-        if largest < 1e-5 {
+        poses.copy_from_slice(&trial);
+        let relative = (cost - c) / cost.max(1e-12);
+        cost = c;
+        if largest < 1e-5 || relative < 1e-6 {
             break;
         }
     }
@@ -696,4 +901,11 @@ mod tests {
         assert!(after < 0.08 && mean < 0.04, "worst {after}, mean {mean}");
         assert_eq!(poses[0], truth[0]);
     }
+}
+
+/// TEMP debug.
+#[doc(hidden)]
+pub fn debug_factor(map: &TagMap, s: &Snapshot, center: &Pose2, j: &JointConfig) -> Option<(Pose2, Matrix3<f64>)> {
+    let mut w = FactorWork::default();
+    factor(map, &map.observe(s), center, j, &mut w).map(|f| (f.mean, f.info))
 }

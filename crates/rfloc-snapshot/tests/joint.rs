@@ -83,7 +83,7 @@ fn joint_learning_keeps_the_map_consistent_on_a_drifting_path() {
     let t = std::time::Instant::now();
     let cfg = JointConfig {
         chunk: std::env::var("JOINT_CHUNK").map_or(250, |v| v.parse().unwrap()),
-        window: std::env::var("JOINT_WINDOW").map_or(6, |v| v.parse().unwrap()),
+
         ..JointConfig::default()
     };
     let (joint, poses, report) = learn_jointly(&samples, model, TagMapConfig::default(), &cfg);
