@@ -606,11 +606,6 @@ impl<'a> Mapper<'a> {
         self.build(&located)
     }
 
-    /// The model's reach, m.
-    pub(crate) fn reach(&self) -> f64 {
-        self.table.reach
-    }
-
     /// Number of tags read often enough over the whole survey.
     pub(crate) fn tag_count(&self) -> usize {
         self.ids.len()

@@ -1,5 +1,5 @@
 //! Joint learning of the tag map and the exploration trajectory on a drifting odometry: the
-//! map learned along the odometry gets worse with the explored area, the joint one does not.
+//! map learned along the odometry gets worse as the exploration goes on, the joint one does not.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
@@ -39,7 +39,8 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
-fn tag_errors(map: &TagMap, world: &World) -> f64 {
+/// Median distance of the mapped tags from their true positions.
+fn tag_error(map: &TagMap, world: &World) -> f64 {
     median(
         map.tags
             .iter()
@@ -52,6 +53,21 @@ fn tag_errors(map: &TagMap, world: &World) -> f64 {
     )
 }
 
+/// Median pose error of the last quarter of a trajectory.
+fn late_error(poses: &[Pose2], truth: &[Pose2]) -> f64 {
+    let from = poses.len() * 3 / 4;
+    median(
+        poses[from..]
+            .iter()
+            .zip(&truth[from..])
+            .map(|(a, b)| a.distance(b))
+            .collect(),
+    )
+}
+
+/// A 7 m square at the seed's tag density, 2000 exploration steps, odometry that drifts by
+/// 0.8 m: the map along the odometry is off by about 0.2 m (median), the joint one stays within
+/// 0.12 m of the truth, and the poses late in the run stay as good as the map.
 #[test]
 fn joint_learning_keeps_the_map_consistent_on_a_drifting_path() {
     let world = World::square(21, 7.0, 32.0, 0.05);
@@ -73,59 +89,72 @@ fn joint_learning_keeps_the_map_consistent_on_a_drifting_path() {
         dropout: 0.0,
         ..ReadModel::seed000(1000.0, 1)
     };
-    let t = std::time::Instant::now();
     let plain = TagMap::learn(
         samples.iter().copied(),
         model.clone(),
         TagMapConfig::default(),
     );
-    let t_plain = t.elapsed();
-    let t = std::time::Instant::now();
-    let cfg = JointConfig {
-        chunk: std::env::var("JOINT_CHUNK").map_or(250, |v| v.parse().unwrap()),
-
-        ..JointConfig::default()
-    };
-    let (joint, poses, report) = learn_jointly(&samples, model, TagMapConfig::default(), &cfg);
-    let t_joint = t.elapsed();
-    let pose_err = |p: &[Pose2]| median(p.iter().zip(&truth).map(|(a, b)| a.distance(b)).collect());
-    let (plain_tags, joint_tags) = (tag_errors(&plain, &world), tag_errors(&joint, &world));
+    let (joint, poses, report) = learn_jointly(
+        &samples,
+        model,
+        TagMapConfig::default(),
+        &JointConfig::default(),
+    );
+    let (plain_tags, joint_tags) = (tag_error(&plain, &world), tag_error(&joint, &world));
+    let (late_odo, late_joint) = (late_error(&odo, &truth), late_error(&poses, &truth));
     println!(
-        "odometry drift max {drift:.3} m, median {:.3} m; joint poses median {:.3} m; \
-         tags median: odometry {plain_tags:.3} m, joint {joint_tags:.3} m; mapped {} / {}; \
-         {report:?}; times {t_plain:?} / {t_joint:?}",
-        pose_err(&odo),
-        pose_err(&poses),
+        "odometry drift max {drift:.3} m; tags median: odometry {plain_tags:.3} m, joint \
+         {joint_tags:.3} m; last quarter poses median: odometry {late_odo:.3} m, joint \
+         {late_joint:.3} m; mapped {} / {}; {report:?}",
         plain.len(),
         joint.len()
     );
-    for (k, c) in poses.chunks(250).zip(truth.chunks(250)).enumerate() {
-        let e: Vec<f64> = c.0.iter().zip(c.1).map(|(a, b)| a.distance(b)).collect();
-        let o: Vec<f64> = odo[k * 250..k * 250 + c.0.len()]
-            .iter()
-            .zip(c.1)
-            .map(|(a, b)| a.distance(b))
-            .collect();
-        let h: Vec<f64> =
-            c.0.iter()
-                .zip(c.1)
-                .map(|(a, b)| rfloc_pose::angle_diff(a.theta, b.theta).abs())
-                .collect();
-        println!(
-            "chunk {k}: joint {:.3} m {:.3} rad, odometry {:.3} m",
-            median(e),
-            median(h),
-            median(o)
-        );
-    }
-    assert!(
-        drift > 0.3,
-        "the test needs a drifting odometry ({drift} m)"
-    );
-    assert!(
-        joint_tags < 0.6 * plain_tags,
-        "{joint_tags} vs {plain_tags}"
-    );
-    assert!(pose_err(&poses) < 0.5 * pose_err(&odo));
+    assert!(drift > 0.5, "the test needs a drifting odometry ({drift} m)");
+    assert!(plain_tags > 0.15, "odometry map {plain_tags} m");
+    assert!(joint_tags < 0.12, "joint map {joint_tags} m");
+    assert!(late_odo > 0.25, "odometry late {late_odo} m");
+    assert!(late_joint < 0.12, "joint late {late_joint} m");
     assert!(joint.len() + 20 >= plain.len());
+    assert!(report.factors > 1500, "{report:?}");
+}
+
+/// Without drift the joint learning changes little: the poses stay near the odometry and the
+/// map is as good as the one along it.
+#[test]
+fn joint_learning_keeps_an_exact_odometry() {
+    let world = World::square(31, 5.0, 32.0, 0.05);
+    let run = explore(&world, 800, 0.1, 32);
+    let truth: Vec<Pose2> = run.iter().map(|o| o.pose).collect();
+    let samples: Vec<_> = run
+        .iter()
+        .map(|o| &o.snapshot)
+        .zip(truth.iter().copied())
+        .collect();
+    let model = ReadModel {
+        read_sigma: 150.0,
+        dropout: 0.0,
+        ..ReadModel::seed000(1000.0, 1)
+    };
+    let plain = TagMap::learn(
+        samples.iter().copied(),
+        model.clone(),
+        TagMapConfig::default(),
+    );
+    let (joint, poses, report) = learn_jointly(
+        &samples,
+        model,
+        TagMapConfig::default(),
+        &JointConfig::default(),
+    );
+    let pose_error = median(
+        poses
+            .iter()
+            .zip(&truth)
+            .map(|(a, b)| a.distance(b))
+            .collect(),
+    );
+    let (plain_tags, joint_tags) = (tag_error(&plain, &world), tag_error(&joint, &world));
+    println!("poses {pose_error:.3} m; tags {plain_tags:.3} / {joint_tags:.3} m; {report:?}");
+    assert!(pose_error < 0.05, "{pose_error}");
+    assert!(joint_tags < plain_tags + 0.02, "{joint_tags} vs {plain_tags}");
 }
