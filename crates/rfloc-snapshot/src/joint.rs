@@ -321,8 +321,7 @@ fn filter_steps(
 ) {
     for i in range {
         if i > 0 {
-            let (Some(prev), Some(u)) = (poses.get(i - 1).copied(), increments.get(i - 1))
-            else {
+            let (Some(prev), Some(u)) = (poses.get(i - 1).copied(), increments.get(i - 1)) else {
                 continue;
             };
             let (s, c) = prev.theta.sin_cos();
@@ -543,10 +542,7 @@ fn moments(
     scores: &[(f64, f64)],
     about: &Pose2,
 ) -> Option<(Vector3<f64>, Matrix3<f64>)> {
-    let top = scores
-        .iter()
-        .map(|s| s.0)
-        .fold(f64::NEG_INFINITY, f64::max);
+    let top = scores.iter().map(|s| s.0).fold(f64::NEG_INFINITY, f64::max);
     if !top.is_finite() {
         return None;
     }
@@ -872,4 +868,3 @@ mod tests {
         assert_eq!(poses[0], truth[0]);
     }
 }
-

@@ -109,7 +109,10 @@ fn joint_learning_keeps_the_map_consistent_on_a_drifting_path() {
         plain.len(),
         joint.len()
     );
-    assert!(drift > 0.5, "the test needs a drifting odometry ({drift} m)");
+    assert!(
+        drift > 0.5,
+        "the test needs a drifting odometry ({drift} m)"
+    );
     assert!(plain_tags > 0.15, "odometry map {plain_tags} m");
     assert!(joint_tags < 0.12, "joint map {joint_tags} m");
     assert!(late_odo > 0.25, "odometry late {late_odo} m");
@@ -156,5 +159,8 @@ fn joint_learning_keeps_an_exact_odometry() {
     let (plain_tags, joint_tags) = (tag_error(&plain, &world), tag_error(&joint, &world));
     println!("poses {pose_error:.3} m; tags {plain_tags:.3} / {joint_tags:.3} m; {report:?}");
     assert!(pose_error < 0.05, "{pose_error}");
-    assert!(joint_tags < plain_tags + 0.02, "{joint_tags} vs {plain_tags}");
+    assert!(
+        joint_tags < plain_tags + 0.02,
+        "{joint_tags} vs {plain_tags}"
+    );
 }
