@@ -2,7 +2,9 @@
 """Times the benchmark problems of benches/problems.rs in Python (python-kmedoids FasterPAM,
 pymdptoolbox ValueIteration) and prints them next to the Rust timings.
 
-Usage: compare.py RUST_TIMING_OUTPUT_FILE   (see compare.sh, which produces it)
+Usage: compare.py RUST_TIMING_OUTPUT_FILE [EUCLIDEAN_MATRIX SNAPSHOT_MATRIX]   (see compare.sh)
+With the matrix files (n × n little-endian f32, written by the Rust side), python-kmedoids
+clusters exactly the matrices Rust clustered, both as float32 and as float64 arrays.
 The problem data come from the same 32-bit LCG as benches/problems.rs, so both sides solve
 identical problems; the cross-check columns show that they agree.
 """
@@ -70,12 +72,25 @@ def main():
                 rust[parts[0]] = (float(parts[1]), " ".join(parts[2:]))
 
     rows = []
-    d = clustering_problem(1625)
-    init = np.arange(0, 1624, 2)
-    res = kmedoids.fasterpam(d, init.copy(), max_iter=100, n_cpu=1)
-    t = median_time(5, lambda: kmedoids.fasterpam(d, init.copy(), max_iter=100, n_cpu=1))
-    rows.append(("fasterpam_1625_k812", "python-kmedoids (Rust core, 1 thread)", t,
-                 f"loss={res.loss:.6f} swaps={res.n_swap} iterations={res.n_iter}"))
+
+    def kmedoids_rows(name, d):
+        n = d.shape[0]
+        init = np.arange(0, n - 1, 2)
+        for dtype in (np.float32, np.float64):
+            dd = np.ascontiguousarray(d.astype(dtype))
+            res = kmedoids.fasterpam(dd, init.copy(), max_iter=100, n_cpu=1)
+            t = median_time(5, lambda: kmedoids.fasterpam(dd, init.copy(), max_iter=100, n_cpu=1))
+            rows.append((name, f"python-kmedoids 1 thread, {np.dtype(dtype).name}", t,
+                         f"loss={res.loss:.6f} swaps={res.n_swap} iterations={res.n_iter}"))
+
+    if len(sys.argv) > 3:
+        for name, path in (("fasterpam_1625_k812", sys.argv[2]),
+                           ("fasterpam_snapshots_1625_k812", sys.argv[3])):
+            raw = np.fromfile(path, dtype="<f4")
+            n = int(round(len(raw) ** 0.5))
+            kmedoids_rows(name, raw.reshape(n, n))
+    else:
+        kmedoids_rows("fasterpam_1625_k812", clustering_problem(1625))
 
     p, r = vi_problem(1000)
 
@@ -97,12 +112,12 @@ def main():
     except Exception as e:  # pymdptoolbox 4.0b3 may not handle every sparse type
         rows.append(("value_iteration_1000x5", f"pymdptoolbox, scipy CSR P (failed: {type(e).__name__})", float("nan"), ""))
 
-    print(f"{'problem':<24} {'python side':<40} {'python s':>10} {'rust s':>10} {'py/rust':>8}")
+    print(f"{'problem':<30} {'python side':<40} {'python s':>10} {'rust s':>10} {'py/rust':>8}")
     for name, side, tp, detail in rows:
         tr, rdetail = rust.get(name, (float("nan"), ""))
-        print(f"{name:<24} {side:<40} {tp:>10.4f} {tr:>10.4f} {tp / tr:>8.1f}")
-        print(f"{'':<24}   python: {detail}")
-        print(f"{'':<24}   rust:   {rdetail}")
+        print(f"{name:<30} {side:<40} {tp:>10.4f} {tr:>10.4f} {tp / tr:>8.1f}")
+        print(f"{'':<30}   python: {detail}")
+        print(f"{'':<30}   rust:   {rdetail}")
 
 
 if __name__ == "__main__":

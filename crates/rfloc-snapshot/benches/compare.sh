@@ -9,7 +9,9 @@ if [ ! -x "$venv/bin/python" ]; then
     "$venv/bin/pip" install --quiet kmedoids pymdptoolbox numpy scipy
 fi
 out="$(mktemp)"
-trap 'rm -f "$out"' EXIT
-(cd "$here/.." && cargo run --quiet --release -p rfloc-snapshot --example snapshot_timing) > "$out"
+euclid="$(mktemp)"
+snaps="$(mktemp)"
+trap 'rm -f "$out" "$euclid" "$snaps"' EXIT
+(cd "$here/.." && cargo run --quiet --release -p rfloc-snapshot --example snapshot_timing -- "$euclid" "$snaps") > "$out"
 echo "Rust timings:"; cat "$out"; echo
-"$venv/bin/python" "$here/compare.py" "$out"
+"$venv/bin/python" "$here/compare.py" "$out" "$euclid" "$snaps"

@@ -122,3 +122,23 @@ pub fn tag_snapshot(
         })
     }))
 }
+
+/// `n` noise-free snapshots of seed 000's world (800 tags in 5 m × 5 m) from random poses, as
+/// the clustering of a 1625-step exploration sees them.
+pub fn snapshot_problem(n: usize) -> Vec<rfloc_snapshot::Snapshot> {
+    let model = rfloc_snapshot::ReadModel::seed000(1000.0, 2);
+    let mut rng = Lcg::new(4242);
+    let tags: Vec<(f64, f64)> = (0..800)
+        .map(|_| (5.0 * rng.next_f64(), 5.0 * rng.next_f64()))
+        .collect();
+    (0..n)
+        .map(|_| {
+            let p = rfloc_pose::Pose2::new(
+                0.3 + 4.4 * rng.next_f64(),
+                0.3 + 4.4 * rng.next_f64(),
+                std::f64::consts::TAU * rng.next_f64(),
+            );
+            tag_snapshot(&model, &tags, &p)
+        })
+        .collect()
+}

@@ -1,13 +1,16 @@
-//! Criterion benchmarks: FasterPAM on 1625 objects (k = 812), value iteration on
-//! 1000 states × 5 actions, learning the tag map of seed 000's world from 1000 survey
-//! snapshots, and one particle-filter update on it (1500 particles).
+//! Criterion benchmarks: FasterPAM on 1625 objects (k = 812), the dissimilarity matrix and
+//! clustering of 1625 exploration snapshots, value iteration on 1000 states × 5 actions,
+//! learning the tag map of seed 000's world from 1000 survey snapshots, and particle-filter
+//! updates on it.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod problems;
 
-use criterion::{criterion_group, criterion_main, Criterion};
-use rfloc_snapshot::cluster::fasterpam;
-use rfloc_snapshot::{value_iteration, ValueIterationConfig};
+use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
+use rfloc_snapshot::cluster::{self, fasterpam};
+use rfloc_snapshot::{
+    value_iteration, ClusteringMethod, DissimilarityMatrix, SnapshotDistance, ValueIterationConfig,
+};
 
 fn clustering(c: &mut Criterion) {
     let d = problems::clustering_problem(1625);
@@ -19,6 +22,22 @@ fn clustering(c: &mut Criterion) {
     });
     g.bench_function("dissimilarity_matrix_1625", |b| {
         b.iter(|| problems::clustering_problem(1625))
+    });
+    // Real snapshots: the matrix over an inverted index, then the default clustering
+    // (k-means++ start, FasterPAM, k = n/2), as `SnapshotDatabase::learn` runs them.
+    let snaps = problems::snapshot_problem(1625);
+    g.bench_function("snapshot_matrix_1625", |b| {
+        b.iter(|| DissimilarityMatrix::from_snapshots(&snaps, SnapshotDistance::RssL1))
+    });
+    let m = DissimilarityMatrix::from_snapshots(&snaps, SnapshotDistance::RssL1);
+    g.bench_function("snapshot_cluster_1625", |b| {
+        b.iter(|| cluster::cluster(&m, &ClusteringMethod::default()))
+    });
+    g.bench_function("snapshot_matrix_and_cluster_1625", |b| {
+        b.iter(|| {
+            let m = DissimilarityMatrix::from_snapshots(&snaps, SnapshotDistance::RssL1);
+            cluster::cluster(&m, &ClusteringMethod::default())
+        })
     });
     g.finish();
 }
@@ -51,14 +70,46 @@ fn tag_map(c: &mut Criterion) {
         rfloc_snapshot::FingerprintMap::new(pairs(), rfloc_snapshot::SnapshotDistance::RssL1);
     let truth = rfloc_pose::Pose2::new(2.5, 2.5, 0.4);
     let snapshot = problems::tag_snapshot(&model, &tags, &truth);
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
-    let mut filter = TrackFilter::new(TrackConfig::default());
-    filter.update_with_map(&map, &prints, &snapshot, &mut rng);
-    g.bench_function("track_update_1500_particles", |b| {
+    let step = rfloc_pose::Pose2::new(0.05, 0.0, 0.02);
+    for particles in [1000, 1500] {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+        let mut filter = TrackFilter::new(TrackConfig {
+            particles,
+            ..TrackConfig::default()
+        });
+        // Global localisation, then a few steps so that the cloud is a tracking cloud.
+        for _ in 0..5 {
+            filter.predict(&rfloc_pose::Pose2::default(), &mut rng);
+            filter.update_with_map(&map, &prints, &snapshot, &mut rng);
+        }
+        // The filter is cloned outside the timed part.
+        g.bench_function(format!("track_update_{particles}_particles"), |b| {
+            b.iter_batched(
+                || filter.clone(),
+                |mut f| {
+                    f.update_with_map(&map, &prints, &snapshot, &mut rng);
+                    f.estimate()
+                },
+                BatchSize::SmallInput,
+            )
+        });
+        g.bench_function(format!("track_cycle_{particles}_particles"), |b| {
+            b.iter_batched(
+                || filter.clone(),
+                |mut f| {
+                    f.predict(&step, &mut rng);
+                    f.update_with_map(&map, &prints, &snapshot, &mut rng);
+                    f.estimate()
+                },
+                BatchSize::SmallInput,
+            )
+        });
+    }
+    g.bench_function("miss_field_all_tiles_800_tags", |b| {
         b.iter(|| {
-            let mut f = filter.clone();
-            f.update_with_map(&map, &prints, &snapshot, &mut rng);
-            f.estimate()
+            let fresh = TagMap::from_tags(model.clone(), map.config, map.tags.clone());
+            fresh.precompute_field();
+            fresh
         })
     });
     g.finish();

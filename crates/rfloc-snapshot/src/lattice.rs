@@ -109,6 +109,16 @@ impl Default for LatticeConfig {
     }
 }
 
+/// Where one action takes a lattice point: the cell below the landing point, relative, its
+/// heading bin, and the trilinear weights towards the next cell / bin.
+#[derive(Debug, Clone, Copy)]
+struct Stencil {
+    di: i64,
+    dj: i64,
+    h: usize,
+    w: [f64; 3],
+}
+
 /// A solved lattice plan to one goal point.
 #[derive(Debug, Clone)]
 pub struct LatticePlan {
@@ -259,31 +269,84 @@ impl LatticePlan {
         !self.goal.get(c).copied().unwrap_or(false)
     }
 
-    fn iterate(&mut self) {
+    /// For each heading and action: where the action takes a lattice point, as a fixed
+    /// trilinear stencil (the cell offset below the landing point and the weights). A lattice
+    /// point has integer coordinates, so the stencil does not depend on the cell.
+    fn stencils(&self) -> Vec<[Stencil; 5]> {
         let nh = self.config.headings;
         let dh = std::f64::consts::TAU / nh as f64;
+        (0..nh)
+            .map(|h| {
+                let pose = Pose2::new(0.0, 0.0, h as f64 * dh);
+                Action::ALL.map(|a| {
+                    let to = pose.compose(&self.model.increment(a));
+                    let fx = to.x / self.config.cell;
+                    let fy = to.y / self.config.cell;
+                    let th = wrap_angle(to.theta).rem_euclid(std::f64::consts::TAU);
+                    let fh = th / dh;
+                    let (i, j, k) = (fx.floor(), fy.floor(), fh.floor());
+                    Stencil {
+                        di: i as i64,
+                        dj: j as i64,
+                        h: (k as usize) % nh,
+                        w: [fx - i, fy - j, fh - k],
+                    }
+                })
+            })
+            .collect()
+    }
+
+    fn iterate(&mut self) {
+        let nh = self.config.headings;
+        let stencils = self.stencils();
+        let (nx, ny) = (self.nx as i64, self.ny as i64);
+        let blocked = self.config.blocked_cost;
         for sweep in 0..self.config.max_sweeps {
             let mut change = 0.0_f64;
             // Alternate sweep direction (Gauss–Seidel converges faster both ways).
-            let cells: Vec<usize> = if sweep % 2 == 0 {
-                (0..self.nx * self.ny).collect()
+            let cells: Box<dyn Iterator<Item = usize>> = if sweep % 2 == 0 {
+                Box::new(0..self.nx * self.ny)
             } else {
-                (0..self.nx * self.ny).rev().collect()
+                Box::new((0..self.nx * self.ny).rev())
             };
             for c in cells {
                 if !self.cell_free(c) {
                     continue;
                 }
-                let cx = self.x0 + (c / self.ny) as f64 * self.config.cell;
-                let cy = self.y0 + (c % self.ny) as f64 * self.config.cell;
-                for h in 0..nh {
-                    let pose = Pose2::new(cx, cy, h as f64 * dh);
-                    let cost = self.step_cost.get(c).copied().unwrap_or(1.0);
-                    let best = Action::ALL
-                        .iter()
-                        .map(|a| cost + self.value_at(&pose.compose(&self.model.increment(*a))))
-                        .fold(f64::INFINITY, f64::min)
-                        .min(self.config.blocked_cost);
+                let (i, j) = ((c / self.ny) as i64, (c % self.ny) as i64);
+                let cost = self.step_cost.get(c).copied().unwrap_or(1.0);
+                for (h, per_action) in stencils.iter().enumerate() {
+                    let mut best = f64::INFINITY;
+                    for st in per_action {
+                        let (a, b) = (i + st.di, j + st.dj);
+                        let [tx, ty, tt] = st.w;
+                        let (h0, h1) = (st.h, (st.h + 1) % nh);
+                        let mut v = 0.0;
+                        for (di, wx) in [(0, 1.0 - tx), (1, tx)] {
+                            for (dj, wy) in [(0, 1.0 - ty), (1, ty)] {
+                                let (x, y) = (a + di, b + dj);
+                                let w = wx * wy;
+                                if w <= 0.0 {
+                                    continue;
+                                }
+                                if x < 0 || y < 0 || x >= nx || y >= ny {
+                                    v += w * blocked;
+                                    continue;
+                                }
+                                let base = (x as usize * self.ny + y as usize) * nh;
+                                let at =
+                                    |k: usize| self.value.get(base + k).copied().unwrap_or(blocked);
+                                if 1.0 - tt > 0.0 {
+                                    v += w * (1.0 - tt) * at(h0);
+                                }
+                                if tt > 0.0 {
+                                    v += w * tt * at(h1);
+                                }
+                            }
+                        }
+                        best = best.min(cost + v);
+                    }
+                    let best = best.min(blocked);
                     if let Some(v) = self.value.get_mut(c * nh + h) {
                         change = change.max((*v - best).abs());
                         *v = best;
@@ -434,6 +497,29 @@ mod tests {
         assert!(
             plan.value_at(&Pose2::new(3.0, 3.5, 0.0)) < plan.value_at(&Pose2::new(1.0, 3.5, 0.0))
         );
+        // The sweeps (precomputed stencils) solved the Bellman equation as `value_at` and
+        // `compose` state it, at every lattice point away from the goal.
+        let dh = std::f64::consts::TAU / plan.config.headings as f64;
+        let mut worst = 0.0_f64;
+        for c in 0..plan.nx * plan.ny {
+            if !plan.cell_free(c) {
+                continue;
+            }
+            let (cx, cy) = (
+                plan.x0 + (c / plan.ny) as f64 * plan.config.cell,
+                plan.y0 + (c % plan.ny) as f64 * plan.config.cell,
+            );
+            for h in 0..plan.config.headings {
+                let pose = Pose2::new(cx, cy, h as f64 * dh);
+                let bellman = Action::ALL
+                    .iter()
+                    .map(|a| plan.step_cost[c] + plan.value_at(&pose.compose(&m.increment(*a))))
+                    .fold(f64::INFINITY, f64::min)
+                    .min(plan.config.blocked_cost);
+                worst = worst.max((plan.value[c * plan.config.headings + h] - bellman).abs());
+            }
+        }
+        assert!(worst < 0.01, "Bellman residual {worst}");
         // A wall of stall places across x = 2 from y = 0 to 3.4: the path goes round its end.
         let wall: Vec<Pose2> = (0..=34)
             .map(|j| Pose2::new(2.0, 0.1 * f64::from(j), 0.0))

@@ -26,8 +26,10 @@ pub use value_iteration::{q_values, value_iteration, ValueIterationConfig, Value
 
 pub mod database;
 pub mod filter;
+pub mod joint;
 pub mod lattice;
 pub mod navigate;
+mod readtable;
 pub mod state_set;
 pub mod store;
 pub mod survey;
@@ -38,8 +40,9 @@ pub use database::{
     LearnConfig, LearnedState, Localisation, Observation, SnapshotDatabase, FORMAT_VERSION,
 };
 pub use filter::{FilterConfig, StateFilter};
+pub use joint::{learn_jointly, JointConfig, JointReport};
 pub use lattice::{ActionModel, LatticeConfig, LatticePlan};
 pub use navigate::{NavCommand, NavReason, Navigator, NavigatorConfig, Plan, PlanConfig};
 pub use survey::{Survey, SurveySample, SURVEY_FORMAT_VERSION};
-pub use tagmap::{MapObservation, MappedTag, ReadModel, TagMap, TagMapConfig};
+pub use tagmap::{LikelihoodScratch, MapObservation, MappedTag, ReadModel, TagMap, TagMapConfig};
 pub use track::{FingerprintMap, TrackConfig, TrackEstimate, TrackFilter};

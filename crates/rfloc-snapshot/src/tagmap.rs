@@ -22,10 +22,12 @@
 //! Units: metres, radians, RSS in reader units.
 
 use std::collections::{BTreeMap, HashMap};
+use std::sync::Arc;
 
 use rfloc_pose::{normal_cdf, Pose2};
 use serde::{Deserialize, Serialize};
 
+use crate::readtable::{sincos_f32, MissField, PoseLanes, ReadTable};
 use crate::snapshot::Snapshot;
 use crate::tag::TagId;
 
@@ -189,18 +191,32 @@ pub struct MappedTag {
     pub reads: usize,
 }
 
-/// Tags of one snapshot against the map: the RSS of each mapped tag that was read.
+/// Tags of one snapshot against the map: the mapped tags that were read, with their RSS.
 #[derive(Debug, Clone, Default)]
 pub struct MapObservation {
-    /// Indexed like [`TagMap::tags`]; `None` = not read.
-    rss: Vec<Option<f64>>,
+    /// `(index into TagMap::tags, RSS)` of each mapped tag read.
+    reads: Vec<(usize, f64)>,
     /// Tags read that are not in the map.
     pub unmapped: usize,
     /// Mapped tags read.
     pub mapped: usize,
 }
 
-/// Learned tag positions with a spatial index.
+/// Poses scored together by [`TagMap::log_likelihoods`] (their buffers fit the first-level
+/// cache).
+const BLOCK: usize = 256;
+
+/// Work buffers of [`TagMap::log_likelihoods`] (kept between calls to avoid allocating).
+#[derive(Debug, Clone, Default)]
+pub struct LikelihoodScratch {
+    poses: PoseLanes,
+    acc: Vec<f32>,
+    terms: Vec<f32>,
+    cells: Vec<u32>,
+    gathered: Vec<[f32; 2]>,
+}
+
+/// Learned tag positions, with the reader model tabulated for fast scoring.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct TagMap {
     pub model: ReadModel,
@@ -208,14 +224,35 @@ pub struct TagMap {
     pub tags: Vec<MappedTag>,
     #[serde(skip)]
     index: BTreeMap<TagId, usize>,
+    /// The model's table and the miss field of these tags (shared by clones; built by
+    /// [`TagMap::rebuild_index`]).
     #[serde(skip)]
-    grid: HashMap<(i64, i64), Vec<usize>>,
-    #[serde(skip)]
-    cell: f64,
+    field: Option<Arc<MissField>>,
 }
 
-/// One read (or miss) of a tag during mapping: the antenna pose and the snapshot's RSS.
-type Sighting = (Pose2, Option<f64>);
+/// One read (or miss) of a tag during mapping: the antenna pose (position, cos and sin of the
+/// heading) and the snapshot's RSS.
+#[derive(Debug, Clone, Copy)]
+struct Sighting {
+    x: f64,
+    y: f64,
+    cos: f64,
+    sin: f64,
+    rss: Option<f64>,
+}
+
+impl Sighting {
+    fn new(a: &Pose2, rss: Option<f64>) -> Self {
+        let (sin, cos) = a.theta.sin_cos();
+        Self {
+            x: a.x,
+            y: a.y,
+            cos,
+            sin,
+            rss,
+        }
+    }
+}
 
 impl TagMap {
     /// Maps every tag read in at least `config.min_reads` of `samples` (snapshot, robot pose).
@@ -226,66 +263,59 @@ impl TagMap {
         config: TagMapConfig,
     ) -> Self {
         let samples: Vec<(&Snapshot, Pose2)> = samples.into_iter().collect();
-        let antennas: Vec<Pose2> = samples.iter().map(|(_, p)| model.antenna(p)).collect();
-        let reach = model.reach();
-        // Spatial index of the antenna poses for the misses.
-        let pose_cell = reach.max(0.5);
-        let mut pose_grid: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
-        for (i, a) in antennas.iter().enumerate() {
-            pose_grid
-                .entry(cell_of(a.x, a.y, pose_cell))
-                .or_default()
-                .push(i);
-        }
-        let mut reads: BTreeMap<&TagId, Vec<(usize, f64)>> = BTreeMap::new();
-        for (i, (s, _)) in samples.iter().enumerate() {
-            for (id, rss) in s.iter() {
-                reads.entry(id).or_default().push((i, rss));
-            }
-        }
-        let mut tags = Vec::new();
-        for (id, seen) in reads {
-            if seen.len() < config.min_reads.max(1) {
-                continue;
-            }
-            let index = SurveyIndex {
-                antennas: &antennas,
-                grid: &pose_grid,
-                cell: pose_cell,
-                reach,
-            };
-            if let Some(t) = locate(id, &seen, &index, &model, &config) {
-                tags.push(t);
-            }
-        }
+        let poses: Vec<Pose2> = samples.iter().map(|(_, p)| *p).collect();
+        let snapshots: Vec<&Snapshot> = samples.iter().map(|(s, _)| *s).collect();
+        let mapper = Mapper::new(&snapshots, model, config);
+        mapper.map(&poses, None)
+    }
+
+    /// A map of already placed tags (the index and tables are built).
+    #[must_use]
+    pub fn from_tags(model: ReadModel, config: TagMapConfig, tags: Vec<MappedTag>) -> Self {
         let mut map = Self {
             model,
             config,
             tags,
             index: BTreeMap::new(),
-            grid: HashMap::new(),
-            cell: 1.0,
+            field: None,
         };
         map.rebuild_index();
         map
     }
 
-    /// Rebuilds the lookup tables (after deserialising).
+    /// Rebuilds the lookup tables (after deserialising, or after changing `tags`, `model` or
+    /// `config.floor`). The miss field's tiles are computed lazily, on first use.
     pub fn rebuild_index(&mut self) {
-        self.cell = self.model.reach().max(0.5);
+        let table = ReadTable::new(&self.model, self.config.floor);
+        self.rebuild_with(table);
+    }
+
+    /// [`TagMap::rebuild_index`] with a table already built for this model and floor.
+    fn rebuild_with(&mut self, table: ReadTable) {
         self.index = self
             .tags
             .iter()
             .enumerate()
             .map(|(i, t)| (t.id.clone(), i))
             .collect();
-        self.grid.clear();
-        for (i, t) in self.tags.iter().enumerate() {
-            self.grid
-                .entry(cell_of(t.x, t.y, self.cell))
-                .or_default()
-                .push(i);
+        let positions: Vec<(f64, f64)> = self.tags.iter().map(|t| (t.x, t.y)).collect();
+        self.field = Some(Arc::new(MissField::new(table, &positions)));
+    }
+
+    /// Computes the whole miss field now instead of tile by tile on first use (a live robot
+    /// may prefer to pay this at start).
+    pub fn precompute_field(&self) {
+        if let Some(f) = &self.field {
+            f.compute_all();
         }
+    }
+
+    /// Tiles of the miss field computed so far, and in all.
+    #[must_use]
+    pub fn field_tiles(&self) -> (usize, usize) {
+        self.field
+            .as_ref()
+            .map_or((0, 0), |f| (f.computed_tiles(), f.tile_count()))
     }
 
     /// Number of mapped tags.
@@ -309,14 +339,11 @@ impl TagMap {
     /// The snapshot's tags against the map.
     #[must_use]
     pub fn observe(&self, snapshot: &Snapshot) -> MapObservation {
-        let mut obs = MapObservation {
-            rss: vec![None; self.tags.len()],
-            ..MapObservation::default()
-        };
+        let mut obs = MapObservation::default();
         for (id, rss) in snapshot.iter() {
-            match self.index.get(id).and_then(|i| obs.rss.get_mut(*i)) {
-                Some(slot) => {
-                    *slot = Some(rss);
+            match self.index.get(id) {
+                Some(&i) => {
+                    obs.reads.push((i, rss));
                     obs.mapped += 1;
                 }
                 None => obs.unmapped += 1,
@@ -325,199 +352,461 @@ impl TagMap {
         obs
     }
 
+    /// σ of a read tag's RSS about the model's mean at the pose (read noise and map error).
+    fn read_sigma(&self) -> f64 {
+        self.model
+            .snapshot_sigma()
+            .hypot(self.config.map_sigma)
+            .max(1e-9)
+    }
+
     /// Log-likelihood of the observation from robot pose `pose` (see the module
-    /// documentation), already divided by the temperature, and the number of terms.
+    /// documentation), already divided by the temperature, and the number of terms (tags in
+    /// view plus read tags out of view; the field's count is interpolated, hence rounded).
     #[must_use]
     pub fn log_likelihood(&self, pose: &Pose2, obs: &MapObservation) -> (f64, usize) {
+        let mut out = Vec::with_capacity(1);
+        self.log_likelihoods(
+            std::slice::from_ref(pose),
+            obs,
+            &mut LikelihoodScratch::default(),
+            &mut out,
+        );
+        let (ll, terms) = out.first().copied().unwrap_or((0.0, 0.0));
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        (ll, terms.round().max(0.0) as usize)
+    }
+
+    /// The log-likelihood by direct summation over every mapped tag in view, with the model
+    /// evaluated exactly (no table, no field): the reference [`TagMap::log_likelihoods`]
+    /// approximates. Returns the value divided by the temperature and the number of terms.
+    #[must_use]
+    pub fn log_likelihood_exact(&self, pose: &Pose2, obs: &MapObservation) -> (f64, f64) {
         let antenna = self.model.antenna(pose);
-        let sigma = self.model.snapshot_sigma().hypot(self.config.map_sigma);
-        let reach = self.cell;
-        let (cx, cy) = cell_of(antenna.x, antenna.y, self.cell);
+        let sigma = self.read_sigma();
+        let floor = self.config.floor;
+        let reach = self.model.reach();
+        let mut read = vec![false; self.tags.len()];
+        let (mut ll, mut terms) = (0.0, 0.0);
+        for &(i, r) in &obs.reads {
+            let Some(t) = self.tags.get(i) else { continue };
+            if let Some(flag) = read.get_mut(i) {
+                *flag = true;
+            }
+            let m = self.model.mean_rss_from(&antenna, t.x, t.y);
+            let z = (r - m) / sigma;
+            ll += (-0.5 * z * z).max(-floor);
+            terms += 1.0;
+        }
         let (sin, cos) = antenna.theta.sin_cos();
+        for (t, _) in self.tags.iter().zip(&read).filter(|(_, r)| !**r) {
+            let (wx, wy) = (t.x - antenna.x, t.y - antenna.y);
+            let x = cos * wx + sin * wy;
+            if x < 0.0 || wx.hypot(wy) > reach {
+                continue;
+            }
+            let m = self.model.mean_rss(x, -sin * wx + cos * wy);
+            ll += crate::readtable::miss_term(&self.model, floor, m);
+            terms += 1.0;
+        }
+        (ll / self.config.temperature.max(1e-9), terms)
+    }
+
+    /// [`TagMap::log_likelihood_exact`] of the read tags only.
+    #[must_use]
+    pub fn read_log_likelihood_exact(&self, pose: &Pose2, obs: &MapObservation) -> (f64, f64) {
+        let antenna = self.model.antenna(pose);
+        let sigma = self.read_sigma();
+        let (mut ll, mut terms) = (0.0, 0.0);
+        for &(i, r) in &obs.reads {
+            let Some(t) = self.tags.get(i) else { continue };
+            let z = (r - self.model.mean_rss_from(&antenna, t.x, t.y)) / sigma;
+            ll += (-0.5 * z * z).max(-self.config.floor);
+            terms += 1.0;
+        }
+        (ll / self.config.temperature.max(1e-9), terms)
+    }
+
+    /// Log-likelihoods (divided by the temperature) and term counts of many robot poses for
+    /// one observation, appended to `out` after clearing it. Uses the tabulated model and the
+    /// miss field: per pose, one field look-up plus one table look-up per read tag. Falls back
+    /// to [`TagMap::log_likelihood_exact`] when the tables are missing or were built for
+    /// another model or floor (call [`TagMap::rebuild_index`] after changing them).
+    pub fn log_likelihoods(
+        &self,
+        poses: &[Pose2],
+        obs: &MapObservation,
+        scratch: &mut LikelihoodScratch,
+        out: &mut Vec<(f64, f64)>,
+    ) {
+        self.score(poses, obs, scratch, out, false);
+    }
+
+    /// As [`TagMap::log_likelihoods`] with the read tags' terms only (no miss terms): what the
+    /// joint learning of map and trajectory uses to place a pose, where it does not depend on
+    /// the miss field of a map that changes every round.
+    pub fn read_log_likelihoods(
+        &self,
+        poses: &[Pose2],
+        obs: &MapObservation,
+        scratch: &mut LikelihoodScratch,
+        out: &mut Vec<(f64, f64)>,
+    ) {
+        self.score(poses, obs, scratch, out, true);
+    }
+
+    fn score(
+        &self,
+        poses: &[Pose2],
+        obs: &MapObservation,
+        scratch: &mut LikelihoodScratch,
+        out: &mut Vec<(f64, f64)>,
+        reads_only: bool,
+    ) {
+        out.clear();
+        let Some(field) = self
+            .field
+            .as_ref()
+            .filter(|f| f.table().is_for(&self.model, self.config.floor))
+        else {
+            out.extend(poses.iter().map(|p| {
+                if reads_only {
+                    self.read_log_likelihood_exact(p, obs)
+                } else {
+                    self.log_likelihood_exact(p, obs)
+                }
+            }));
+            return;
+        };
+        let table = field.table();
+        let LikelihoodScratch {
+            poses: lanes,
+            acc,
+            terms,
+            cells,
+            gathered,
+        } = scratch;
+        let (ox, oy) = poses.first().map_or((0.0, 0.0), |p| (p.x, p.y));
+        let off = self.model.antenna_offset;
+        #[allow(clippy::cast_possible_truncation)]
+        let (inv_sigma, floor) = ((1.0 / self.read_sigma()) as f32, self.config.floor as f32);
+        #[allow(clippy::cast_possible_truncation)]
+        let tags: Vec<(f32, f32, f32)> = obs
+            .reads
+            .iter()
+            .filter_map(|&(ti, r)| {
+                let t = self.tags.get(ti)?;
+                Some(((t.x - ox) as f32, (t.y - oy) as f32, r as f32))
+            })
+            .collect();
+        let inv_t = 1.0 / self.config.temperature.max(1e-9);
+        // Blocks of poses small enough that their buffers stay in the first-level cache while
+        // every read tag passes over them.
+        for block in poses.chunks(BLOCK) {
+            let m = block.len();
+            lanes.reset(m);
+            for v in [&mut *acc, &mut *terms] {
+                v.clear();
+                v.resize(lanes.x.len(), 0.0);
+            }
+            cells.clear();
+            cells.resize(lanes.x.len(), 0);
+            gathered.clear();
+            gathered.resize(lanes.x.len(), [0.0; 2]);
+            // Antenna poses (relative to the first pose, in single precision) and the field.
+            let slots = lanes
+                .x
+                .iter_mut()
+                .zip(lanes.y.iter_mut())
+                .zip(lanes.cos.iter_mut().zip(lanes.sin.iter_mut()))
+                .zip(acc.iter_mut().zip(terms.iter_mut()));
+            for (p, (((px, py), (pc, ps)), (a, k))) in block.iter().zip(slots) {
+                let (s, c) = sincos_f32(p.theta);
+                let ax = p.x + f64::from(c) * off;
+                let ay = p.y + f64::from(s) * off;
+                let (sum, count) = if reads_only {
+                    (0.0, 0.0)
+                } else {
+                    field.sample(ax, ay, p.theta)
+                };
+                #[allow(clippy::cast_possible_truncation)]
+                {
+                    *px = (ax - ox) as f32;
+                    *py = (ay - oy) as f32;
+                }
+                *pc = c;
+                *ps = s;
+                *a = sum;
+                *k = count;
+            }
+            for &tag in &tags {
+                table.add_read(
+                    tag, inv_sigma, floor, reads_only, lanes, cells, gathered, acc, terms,
+                );
+            }
+            out.extend(
+                acc.iter()
+                    .zip(terms.iter())
+                    .take(m)
+                    .map(|(a, k)| (f64::from(*a) * inv_t, f64::from(*k))),
+            );
+        }
+    }
+}
+/// The survey's snapshots (tags interned) and antenna poses with their spatial index, as every
+/// tag's search sees them; maps tags for a given set of poses.
+pub(crate) struct Mapper<'a> {
+    model: ReadModel,
+    config: TagMapConfig,
+    table: ReadTable,
+    /// Tag IDs, and for each the snapshots that read it with the RSS.
+    ids: Vec<&'a TagId>,
+    reads: Vec<Vec<(usize, f64)>>,
+}
+
+/// The antenna poses of one mapping pass, bucketed.
+pub(crate) struct PoseIndex {
+    antennas: Vec<Pose2>,
+    grid: HashMap<(i64, i64), Vec<usize>>,
+    cell: f64,
+}
+
+impl PoseIndex {
+    fn new(antennas: Vec<Pose2>, cell: f64) -> Self {
+        let mut grid: HashMap<(i64, i64), Vec<usize>> = HashMap::new();
+        for (i, a) in antennas.iter().enumerate() {
+            grid.entry(cell_of(a.x, a.y, cell)).or_default().push(i);
+        }
+        Self {
+            antennas,
+            grid,
+            cell,
+        }
+    }
+}
+
+impl<'a> Mapper<'a> {
+    pub(crate) fn new(snapshots: &[&'a Snapshot], model: ReadModel, config: TagMapConfig) -> Self {
+        let mut by_id: BTreeMap<&'a TagId, Vec<(usize, f64)>> = BTreeMap::new();
+        for (i, s) in snapshots.iter().enumerate() {
+            for (id, rss) in s.iter() {
+                by_id.entry(id).or_default().push((i, rss));
+            }
+        }
+        let table = ReadTable::new(&model, config.floor);
+        let (ids, reads) = by_id
+            .into_iter()
+            .filter(|(_, seen)| seen.len() >= config.min_reads.max(1))
+            .unzip();
+        Self {
+            model,
+            config,
+            table,
+            ids,
+            reads,
+        }
+    }
+
+    /// Places every tag for the robot poses `poses` (one per snapshot); with `previous` (the
+    /// positions of the last pass, by tag), tags are searched around them only.
+    pub(crate) fn map(&self, poses: &[Pose2], previous: Option<&[Option<(f64, f64)>]>) -> TagMap {
+        let index = self.index(poses);
+        let located: Vec<Option<MappedTag>> = (0..self.ids.len())
+            .map(|k| {
+                let start = previous.and_then(|p| p.get(k).copied().flatten());
+                self.locate_tag(k, &index, start)
+            })
+            .collect();
+        self.build(&located)
+    }
+
+    /// Number of tags read often enough over the whole survey.
+    pub(crate) fn tag_count(&self) -> usize {
+        self.ids.len()
+    }
+
+    /// Snapshots (indices) that read tag `k`, in order.
+    pub(crate) fn reads_of(&self, k: usize) -> &[(usize, f64)] {
+        self.reads.get(k).map_or(&[], Vec::as_slice)
+    }
+
+    /// The antenna poses of `poses` (the first `poses.len()` snapshots), bucketed.
+    pub(crate) fn index(&self, poses: &[Pose2]) -> PoseIndex {
+        let antennas: Vec<Pose2> = poses.iter().map(|p| self.model.antenna(p)).collect();
+        PoseIndex::new(antennas, self.table.reach.max(0.5))
+    }
+
+    /// Places tag `k` from the snapshots `index` covers (its reads among them must reach
+    /// `min_reads`), around `start` when given.
+    pub(crate) fn locate_tag(
+        &self,
+        k: usize,
+        index: &PoseIndex,
+        start: Option<(f64, f64)>,
+    ) -> Option<MappedTag> {
+        let id = self.ids.get(k)?;
+        let all = self.reads.get(k)?;
+        let seen = all
+            .get(..all.partition_point(|(i, _)| *i < index.antennas.len()))
+            .unwrap_or(&[]);
+        if seen.len() < self.config.min_reads.max(1) {
+            return None;
+        }
+        self.locate(id, seen, index, start)
+    }
+
+    /// The map of the located tags.
+    pub(crate) fn build(&self, located: &[Option<MappedTag>]) -> TagMap {
+        self.build_from(located.iter().flatten().cloned())
+    }
+
+    /// The map of these tags (sharing the mapper's table).
+    pub(crate) fn build_from(&self, tags: impl Iterator<Item = MappedTag>) -> TagMap {
+        let mut map = TagMap {
+            model: self.model.clone(),
+            config: self.config,
+            tags: tags.collect(),
+            index: BTreeMap::new(),
+            field: None,
+        };
+        map.rebuild_with(self.table.clone());
+        map
+    }
+
+    /// Log-likelihood of a tag at `(x, y)` given its sightings (reads and misses).
+    fn tag_log_likelihood(&self, x: f64, y: f64, sightings: &[Sighting], sigma: f64) -> f64 {
+        let floor = self.config.floor;
         let mut ll = 0.0;
-        let mut terms = 0usize;
-        let mut read_seen = 0usize;
-        for dx in -1..=1 {
-            for dy in -1..=1 {
-                let Some(members) = self.grid.get(&(cx + dx, cy + dy)) else {
+        for s in sightings {
+            let (wx, wy) = (x - s.x, y - s.y);
+            let (m, miss) = self
+                .table
+                .at(s.cos * wx + s.sin * wy, -s.sin * wx + s.cos * wy);
+            ll += match s.rss {
+                Some(r) => {
+                    let z = (r - m) / sigma;
+                    (-0.5 * z * z).max(-floor)
+                }
+                // A miss from where the tag could not be read says nothing (the table's 0).
+                None => miss,
+            };
+        }
+        ll
+    }
+
+    /// Places one tag: first guess from its reads (or `start`), coarse then fine grid search of
+    /// the likelihood, σ from the likelihood's spread over the fine grid.
+    fn locate(
+        &self,
+        id: &TagId,
+        seen: &[(usize, f64)],
+        survey: &PoseIndex,
+        start: Option<(f64, f64)>,
+    ) -> Option<MappedTag> {
+        let c = &self.config;
+        let model = &self.model;
+        let reach = self.table.reach;
+        let (gx, gy) = match start {
+            Some(p) => p,
+            None => {
+                // First guess: each read puts the tag on the boresight at the on-axis
+                // distance of its RSS.
+                let (mut sx, mut sy, mut sw) = (0.0, 0.0, 0.0);
+                for (i, rss) in seen {
+                    let a = survey.antennas.get(*i)?;
+                    let mut d = 0.0;
+                    while d < 5.0 && model.mean_rss(d, 0.0) > *rss {
+                        d += 0.02;
+                    }
+                    // Off-axis tags read weaker than on the axis: the true distance is shorter.
+                    let d = 0.7 * d;
+                    let w = rss.max(1.0);
+                    sx += w * (a.x + d * a.theta.cos());
+                    sy += w * (a.y + d * a.theta.sin());
+                    sw += w;
+                }
+                if sw <= 0.0 {
+                    return None;
+                }
+                (sx / sw, sy / sw)
+            }
+        };
+        // A second pass only refines around the last position.
+        let radius = if start.is_some() {
+            2.0 * c.coarse_step
+        } else {
+            c.search_radius
+        };
+        // Sightings: the reads, and the misses from every antenna pose within reach of the
+        // window.
+        let read_at: HashMap<usize, f64> = seen.iter().copied().collect();
+        let (cx, cy) = cell_of(gx, gy, survey.cell);
+        #[allow(clippy::cast_possible_truncation)]
+        let span = ((radius + reach) / survey.cell).ceil() as i64;
+        let mut sightings: Vec<Sighting> = Vec::new();
+        for dx in -span..=span {
+            for dy in -span..=span {
+                let Some(members) = survey.grid.get(&(cx + dx, cy + dy)) else {
                     continue;
                 };
                 for &i in members {
-                    let Some(t) = self.tags.get(i) else { continue };
-                    let rss = obs.rss.get(i).copied().flatten();
-                    let (wx, wy) = (t.x - antenna.x, t.y - antenna.y);
-                    if rss.is_none() && (wx * wx + wy * wy > reach * reach) {
+                    let Some(a) = survey.antennas.get(i) else {
                         continue;
-                    }
-                    // Into the antenna frame.
-                    let x = cos * wx + sin * wy;
-                    if rss.is_none() && x < 0.0 {
-                        // Behind the antenna: never read, and not read.
-                        continue;
-                    }
-                    let y = -sin * wx + cos * wy;
-                    let m = self.model.mean_rss(x, y);
-                    let term = match rss {
-                        Some(r) => {
-                            read_seen += 1;
-                            let z = (r - m) / sigma;
-                            -0.5 * z * z
-                        }
-                        None => (1.0 - self.model.read_probability(m)).max(1e-300).ln(),
                     };
-                    ll += term.max(-self.config.floor);
-                    terms += 1;
+                    let near = (a.x - gx).hypot(a.y - gy) <= radius + reach;
+                    match read_at.get(&i) {
+                        Some(r) => sightings.push(Sighting::new(a, Some(*r))),
+                        None if near => sightings.push(Sighting::new(a, None)),
+                        None => {}
+                    }
                 }
             }
         }
-        // Tags read but too far from this pose to be in the cells above: each at the floor.
-        let missing = obs.mapped.saturating_sub(read_seen);
-        #[allow(clippy::cast_precision_loss)]
-        {
-            ll -= missing as f64 * self.config.floor;
+        let sigma = model.snapshot_sigma().hypot(0.5 * c.map_sigma).max(1e-9);
+        let search = |x0: f64, y0: f64, half: f64, step: f64| -> Vec<(f64, f64, f64)> {
+            #[allow(clippy::cast_possible_truncation)]
+            let n = (half / step).round().clamp(0.0, 1000.0) as i64;
+            let mut out = Vec::new();
+            for ix in -n..=n {
+                for iy in -n..=n {
+                    #[allow(clippy::cast_precision_loss)]
+                    let (x, y) = (x0 + ix as f64 * step, y0 + iy as f64 * step);
+                    out.push((x, y, self.tag_log_likelihood(x, y, &sightings, sigma)));
+                }
+            }
+            out
+        };
+        let best_of = |v: &[(f64, f64, f64)]| v.iter().copied().max_by(|a, b| a.2.total_cmp(&b.2));
+        let coarse = search(gx, gy, radius, c.coarse_step.max(1e-3));
+        let (bx, by, _) = best_of(&coarse)?;
+        let fine = search(bx, by, c.coarse_step, c.fine_step.max(1e-4));
+        let (fx, fy, fl) = best_of(&fine)?;
+        // Spread: likelihood-weighted second moment over the fine window (at least a grid step).
+        let (mut w, mut m2) = (0.0, 0.0);
+        for (x, y, l) in &fine {
+            let p = (l - fl).exp();
+            w += p;
+            m2 += p * ((x - fx).powi(2) + (y - fy).powi(2));
         }
-        terms += missing;
-        (ll / self.config.temperature.max(1e-9), terms)
+        let sigma = if w > 0.0 {
+            (m2 / w / 2.0).sqrt()
+        } else {
+            c.coarse_step
+        }
+        .max(c.fine_step);
+        Some(MappedTag {
+            id: id.clone(),
+            x: fx,
+            y: fy,
+            sigma,
+            reads: seen.len(),
+        })
     }
 }
 
 fn cell_of(x: f64, y: f64, cell: f64) -> (i64, i64) {
     #[allow(clippy::cast_possible_truncation)]
     ((x / cell).floor() as i64, (y / cell).floor() as i64)
-}
-
-/// Log-likelihood of a tag at `(x, y)` given its sightings (reads and misses).
-fn tag_log_likelihood(
-    x: f64,
-    y: f64,
-    sightings: &[Sighting],
-    model: &ReadModel,
-    c: &TagMapConfig,
-    reach: f64,
-) -> f64 {
-    let sigma = model.snapshot_sigma().hypot(0.5 * c.map_sigma);
-    let mut ll = 0.0;
-    for (a, rss) in sightings {
-        let (sin, cos) = a.theta.sin_cos();
-        let (wx, wy) = (x - a.x, y - a.y);
-        let ax = cos * wx + sin * wy;
-        if rss.is_none() && (ax < 0.0 || wx * wx + wy * wy > reach * reach) {
-            // A miss from where the tag could not be read says nothing.
-            continue;
-        }
-        let m = model.mean_rss(ax, -sin * wx + cos * wy);
-        let term = match rss {
-            Some(r) => {
-                let z = (r - m) / sigma;
-                -0.5 * z * z
-            }
-            None => (1.0 - model.read_probability(m)).max(1e-300).ln(),
-        };
-        ll += term.max(-c.floor);
-    }
-    ll
-}
-
-/// The survey's antenna poses with their spatial index, as every tag's search sees them.
-struct SurveyIndex<'a> {
-    antennas: &'a [Pose2],
-    grid: &'a HashMap<(i64, i64), Vec<usize>>,
-    /// Cell size of `grid`, metres.
-    cell: f64,
-    /// The model's reach, metres.
-    reach: f64,
-}
-
-/// Places one tag: first guess from its reads, coarse then fine grid search of the likelihood,
-/// σ from the likelihood's spread over the fine grid.
-fn locate(
-    id: &TagId,
-    seen: &[(usize, f64)],
-    survey: &SurveyIndex<'_>,
-    model: &ReadModel,
-    c: &TagMapConfig,
-) -> Option<MappedTag> {
-    let (antennas, pose_grid, pose_cell, reach) =
-        (survey.antennas, survey.grid, survey.cell, survey.reach);
-    // First guess: each read puts the tag on the boresight at the on-axis distance of its RSS.
-    let (mut sx, mut sy, mut sw) = (0.0, 0.0, 0.0);
-    for (i, rss) in seen {
-        let a = antennas.get(*i)?;
-        let mut d = 0.0;
-        while d < 5.0 && model.mean_rss(d, 0.0) > *rss {
-            d += 0.02;
-        }
-        // Off-axis tags read weaker than on the axis: the true distance is shorter.
-        let d = 0.7 * d;
-        let w = rss.max(1.0);
-        sx += w * (a.x + d * a.theta.cos());
-        sy += w * (a.y + d * a.theta.sin());
-        sw += w;
-    }
-    if sw <= 0.0 {
-        return None;
-    }
-    let (gx, gy) = (sx / sw, sy / sw);
-    // Sightings: the reads, and the misses from every antenna pose within reach of the window.
-    let read_at: HashMap<usize, f64> = seen.iter().copied().collect();
-    let (cx, cy) = cell_of(gx, gy, pose_cell);
-    #[allow(clippy::cast_possible_truncation)]
-    let span = ((c.search_radius + reach) / pose_cell).ceil() as i64;
-    let mut sightings: Vec<Sighting> = Vec::new();
-    for dx in -span..=span {
-        for dy in -span..=span {
-            let Some(members) = pose_grid.get(&(cx + dx, cy + dy)) else {
-                continue;
-            };
-            for &i in members {
-                let Some(a) = antennas.get(i) else { continue };
-                let near = (a.x - gx).hypot(a.y - gy) <= c.search_radius + reach;
-                match read_at.get(&i) {
-                    Some(r) => sightings.push((*a, Some(*r))),
-                    None if near => sightings.push((*a, None)),
-                    None => {}
-                }
-            }
-        }
-    }
-    let search = |x0: f64, y0: f64, half: f64, step: f64| -> Vec<(f64, f64, f64)> {
-        #[allow(clippy::cast_possible_truncation)]
-        let n = (half / step).round().clamp(0.0, 1000.0) as i64;
-        let mut out = Vec::new();
-        for ix in -n..=n {
-            for iy in -n..=n {
-                #[allow(clippy::cast_precision_loss)]
-                let (x, y) = (x0 + ix as f64 * step, y0 + iy as f64 * step);
-                out.push((x, y, tag_log_likelihood(x, y, &sightings, model, c, reach)));
-            }
-        }
-        out
-    };
-    let best_of = |v: &[(f64, f64, f64)]| v.iter().copied().max_by(|a, b| a.2.total_cmp(&b.2));
-    let coarse = search(gx, gy, c.search_radius, c.coarse_step.max(1e-3));
-    let (bx, by, _) = best_of(&coarse)?;
-    let fine = search(bx, by, c.coarse_step, c.fine_step.max(1e-4));
-    let (fx, fy, fl) = best_of(&fine)?;
-    // Spread: likelihood-weighted second moment over the fine window (at least a grid step).
-    let (mut w, mut m2) = (0.0, 0.0);
-    for (x, y, l) in &fine {
-        let p = (l - fl).exp();
-        w += p;
-        m2 += p * ((x - fx).powi(2) + (y - fy).powi(2));
-    }
-    let sigma = if w > 0.0 {
-        (m2 / w / 2.0).sqrt()
-    } else {
-        c.coarse_step
-    }
-    .max(c.fine_step);
-    Some(MappedTag {
-        id: id.clone(),
-        x: fx,
-        y: fy,
-        sigma,
-        reads: seen.len(),
-    })
 }
 
 #[cfg(test)]
@@ -638,6 +927,24 @@ mod tests {
         ] {
             assert!(at(&other) < best, "{other:?}: {} vs {best}", at(&other));
         }
+        // The tabulated likelihood (field and table) against direct summation with the exact
+        // model, at poses around the truth: close, and it ranks them the same way.
+        let mut pairs = Vec::new();
+        for k in 0..60 {
+            let p = Pose2::new(
+                1.5 + 0.02 * f64::from(k % 8) * 6.0,
+                1.5 + 0.1 * f64::from(k / 8),
+                0.7 + 0.05 * f64::from(k % 5) - 0.1,
+            );
+            pairs.push((
+                map.log_likelihood(&p, &obs).0,
+                map.log_likelihood_exact(&p, &obs).0,
+            ));
+        }
+        let spread = pairs.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max)
+            - pairs.iter().map(|p| p.1).fold(f64::INFINITY, f64::min);
+        let worst = pairs.iter().map(|p| (p.0 - p.1).abs()).fold(0.0, f64::max);
+        assert!(worst < 0.1 * spread.max(1.0), "worst {worst} of {spread}");
         // Reloaded from JSON the map scores the same.
         let mut back: TagMap = serde_json::from_str(&serde_json::to_string(&map).unwrap()).unwrap();
         back.rebuild_index();

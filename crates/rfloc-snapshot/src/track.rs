@@ -19,9 +19,9 @@ use rand::Rng;
 use rfloc_pose::{angle_diff, wrap_angle, Pose2};
 use serde::{Deserialize, Serialize};
 
-use crate::distance::{IndexedSnapshot, SnapshotDistance, TagIndex};
+use crate::distance::{postings, IndexedSnapshot, Shared, SnapshotDistance, TagIndex};
 use crate::snapshot::Snapshot;
-use crate::tagmap::TagMap;
+use crate::tagmap::{LikelihoodScratch, TagMap};
 
 /// Every exploration snapshot with its pose: the fine localisation database.
 #[derive(Debug, Clone, Default)]
@@ -30,6 +30,8 @@ pub struct FingerprintMap {
     tags: TagIndex,
     prints: Vec<IndexedSnapshot>,
     poses: Vec<Pose2>,
+    /// For each interned tag, the fingerprints that read it (inverted index).
+    postings: Vec<Vec<(u32, f64)>>,
 }
 
 impl FingerprintMap {
@@ -51,6 +53,7 @@ impl FingerprintMap {
             map.prints.push(indexed);
             map.poses.push(p);
         }
+        map.postings = postings(&map.prints, map.tags.len());
         map
     }
 
@@ -73,24 +76,66 @@ impl FingerprintMap {
     }
 
     /// The `k` fingerprints most similar to `snapshot`, as `(pose, weight)` with weight
-    /// `exp(−(d − d_min)/τ)` (the best one weighs 1), dropping those below `e^−8`.
+    /// `exp(−(d − d_min)/τ)` (the best one weighs 1), dropping those below `e^−8`. Ties keep
+    /// the fingerprints' order. Only fingerprints sharing a tag with the snapshot are compared
+    /// (through the inverted index); the others are at dissimilarity 1.
     #[must_use]
     pub fn matches(&self, snapshot: &Snapshot, k: usize, tau: f64) -> Vec<(Pose2, f64)> {
         if snapshot.is_empty() || self.prints.is_empty() {
             return Vec::new();
         }
         let q = self.tags.index_query(snapshot);
-        let mut d: Vec<(f64, usize)> = self
-            .prints
+        let mut shared: Vec<(u32, Shared)> = Vec::new();
+        // Position in `shared` of each fingerprint met so far.
+        let mut slot = vec![u32::MAX; self.prints.len()];
+        for (t, rq) in q.pairs() {
+            let Some(p) = self.postings.get(t as usize) else {
+                continue;
+            };
+            for &(i, rp) in p {
+                let Some(at) = slot.get_mut(i as usize) else {
+                    continue;
+                };
+                if *at == u32::MAX {
+                    *at = shared.len() as u32;
+                    shared.push((i, Shared::default()));
+                }
+                if let Some((_, s)) = shared.get_mut(*at as usize) {
+                    s.add(rq, rp);
+                }
+            }
+        }
+        let mut d: Vec<(f64, usize)> = shared
             .iter()
-            .enumerate()
-            .map(|(i, p)| (self.distance.between_indexed(&q, p), i))
+            .filter_map(|(i, s)| {
+                let p = self.prints.get(*i as usize)?;
+                Some((self.distance.with_shared(&q, p, *s), *i as usize))
+            })
             .collect();
-        d.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let k = k.max(1);
+        // Fewer than k share a tag: the rest are the first fingerprints sharing none (d = 1).
+        if d.len() < k {
+            let missing = k - d.len();
+            d.extend(
+                slot.iter()
+                    .enumerate()
+                    .filter(|(_, s)| **s == u32::MAX)
+                    .take(missing)
+                    .filter_map(|(i, _)| {
+                        let p = self.prints.get(i)?;
+                        Some((self.distance.with_shared(&q, p, Shared::default()), i))
+                    }),
+            );
+        }
+        let order = |a: &(f64, usize), b: &(f64, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+        if d.len() > k {
+            d.select_nth_unstable_by(k - 1, order);
+            d.truncate(k);
+        }
+        d.sort_by(order);
         let dmin = d.first().map_or(0.0, |x| x.0);
         let tau = tau.max(1e-9);
         d.iter()
-            .take(k.max(1))
             .map(|(di, i)| ((-(di - dmin) / tau).exp(), *i))
             .filter(|(w, _)| *w > (-8.0_f64).exp())
             .filter_map(|(w, i)| self.poses.get(i).map(|p| (*p, w)))
@@ -173,13 +218,51 @@ pub struct TrackFilter {
     initialised: bool,
     w_fast: f64,
     w_slow: f64,
+    /// Work buffers of the tag-map likelihood.
+    scratch: LikelihoodScratch,
+    scores: Vec<(f64, f64)>,
 }
 
-/// One standard normal draw (Box–Muller).
+/// One standard normal draw (ziggurat).
 fn normal<R: Rng + ?Sized>(rng: &mut R) -> f64 {
-    let u1: f64 = rng.random::<f64>().max(f64::MIN_POSITIVE);
-    let u2: f64 = rng.random::<f64>();
-    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    rand_distr::Distribution::<f64>::sample(&rand_distr::StandardNormal, rng)
+}
+
+/// `p ⊕ (dx, dy, dθ)` with `sin`/`cos` from [`sincos`].
+#[inline]
+fn compose(p: &Pose2, dx: f64, dy: f64, dth: f64) -> Pose2 {
+    let (s, c) = sincos(p.theta);
+    Pose2::new(p.x + c * dx - s * dy, p.y + s * dx + c * dy, p.theta + dth)
+}
+
+/// `sin θ`, `cos θ` by polynomials after reduction to `[−π/4, π/4]` (error below 1e−13;
+/// cheaper than the library's correctly rounded pair).
+#[inline]
+pub(crate) fn sincos(theta: f64) -> (f64, f64) {
+    let q = crate::readtable::round_f64(theta * std::f64::consts::FRAC_2_PI);
+    let r = theta - q * std::f64::consts::FRAC_PI_2;
+    let r2 = r * r;
+    let s = r
+        * (1.0
+            + r2 * (-1.0 / 6.0
+                + r2 * (1.0 / 120.0
+                    + r2 * (-1.0 / 5040.0
+                        + r2 * (1.0 / 362_880.0
+                            + r2 * (-1.0 / 39_916_800.0 + r2 * (1.0 / 6_227_020_800.0)))))));
+    let c = 1.0
+        + r2 * (-0.5
+            + r2 * (1.0 / 24.0
+                + r2 * (-1.0 / 720.0
+                    + r2 * (1.0 / 40_320.0
+                        + r2 * (-1.0 / 3_628_800.0
+                            + r2 * (1.0 / 479_001_600.0 + r2 * (-1.0 / 87_178_291_200.0)))))));
+    #[allow(clippy::cast_possible_truncation)]
+    match (q as i64) & 3 {
+        0 => (s, c),
+        1 => (c, -s),
+        2 => (-s, -c),
+        _ => (-c, s),
+    }
 }
 
 impl TrackFilter {
@@ -194,6 +277,8 @@ impl TrackFilter {
             initialised: false,
             w_fast: 0.0,
             w_slow: 0.0,
+            scratch: LikelihoodScratch::default(),
+            scores: Vec::new(),
         }
     }
 
@@ -216,12 +301,12 @@ impl TrackFilter {
         let st = c.odo_trans_abs + c.odo_trans_rel * dist;
         let sr = c.odo_rot_abs + c.odo_rot_rel * delta.theta.abs() + 0.05 * dist;
         for p in &mut self.poses {
-            let noisy = Pose2::new(
+            let (dx, dy, dth) = (
                 delta.x + st * normal(rng),
                 delta.y + st * normal(rng),
                 delta.theta + sr * normal(rng),
             );
-            *p = p.compose(&noisy);
+            *p = compose(p, dx, dy, dth);
         }
     }
 
@@ -339,43 +424,51 @@ impl TrackFilter {
         if obs.mapped == 0 {
             return;
         }
-        let matches = proposals.matches(snapshot, c.neighbours, c.tau);
         if !self.initialised || self.poses.is_empty() {
+            let matches = proposals.matches(snapshot, c.neighbours, c.tau);
             if matches.is_empty() {
                 return;
             }
             self.draw_all(&matches, rng);
-        } else if !matches.is_empty() {
-            let n = self.poses.len();
+        } else {
+            // The fingerprints are only consulted when particles are to be redrawn.
             let k = self.resets();
-            let uniform = 1.0 / n.max(1) as f64;
-            for _ in 0..k {
-                let i = rng.random_range(0..n.max(1));
-                if let Some(fresh) = self.draw_near(&matches, rng) {
-                    if let (Some(slot), Some(w)) = (self.poses.get_mut(i), self.weights.get_mut(i))
-                    {
-                        *slot = fresh;
-                        *w = uniform;
+            let matches = if k > 0 {
+                proposals.matches(snapshot, c.neighbours, c.tau)
+            } else {
+                Vec::new()
+            };
+            if !matches.is_empty() {
+                let n = self.poses.len();
+                let uniform = 1.0 / n.max(1) as f64;
+                for _ in 0..k {
+                    let i = rng.random_range(0..n.max(1));
+                    if let Some(fresh) = self.draw_near(&matches, rng) {
+                        if let (Some(slot), Some(w)) =
+                            (self.poses.get_mut(i), self.weights.get_mut(i))
+                        {
+                            *slot = fresh;
+                            *w = uniform;
+                        }
                     }
                 }
+                normalise(&mut self.weights);
             }
-            normalise(&mut self.weights);
         }
-        let scores: Vec<(f64, usize)> = self
-            .poses
-            .iter()
-            .map(|p| tags.log_likelihood(p, &obs))
-            .collect();
+        let mut scores = std::mem::take(&mut self.scores);
+        tags.log_likelihoods(&self.poses, &obs, &mut self.scratch, &mut scores);
         let best = scores.iter().map(|s| s.0).fold(f64::NEG_INFINITY, f64::max);
         if !best.is_finite() {
+            self.scores = scores;
             return;
         }
         // How well the cloud explains the snapshot: weighted per-term likelihood.
         let mut explained = 0.0;
         for (w, (ll, terms)) in self.weights.iter_mut().zip(&scores) {
-            explained += *w * (ll / (*terms).max(1) as f64).exp();
+            explained += *w * (ll / terms.max(1.0)).exp();
             *w *= (ll - best).exp();
         }
+        self.scores = scores;
         self.finish_update(explained, rng);
     }
 
@@ -434,66 +527,148 @@ impl TrackFilter {
         }
         // Heaviest 0.3 m cell.
         const CELL: f64 = 0.3;
-        let mut cells: std::collections::HashMap<(i64, i64), f64> =
-            std::collections::HashMap::new();
-        for (p, w) in self.poses.iter().zip(&self.weights) {
-            let key = ((p.x / CELL).floor() as i64, (p.y / CELL).floor() as i64);
-            *cells.entry(key).or_insert(0.0) += w;
-        }
-        // The cell whose 3×3 neighbourhood is heaviest (a diffuse mode beats a tight speck).
-        let around = |k: &(i64, i64)| -> f64 {
-            let mut sum = 0.0;
-            for dx in -1..=1 {
-                for dy in -1..=1 {
-                    sum += cells.get(&(k.0 + dx, k.1 + dy)).copied().unwrap_or(0.0);
-                }
-            }
-            sum
-        };
+        let floor = crate::readtable::floor_f64;
+        let key = |p: &Pose2| (floor(p.x / CELL) as i64, floor(p.y / CELL) as i64);
+        let cells = CellWeights::new(self.poses.iter().map(key).zip(self.weights.iter().copied()));
+        // The cell whose 3×3 neighbourhood is heaviest (a diffuse mode beats a tight speck);
+        // ties go to the smallest cell.
         let best = cells
-            .keys()
-            .map(|k| (*k, around(k)))
+            .occupied()
+            .map(|k| (k, cells.around(k)))
             .max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0)))
             .map(|(k, _)| k)?;
         let mut cx = (best.0 as f64 + 0.5) * CELL;
         let mut cy = (best.1 as f64 + 0.5) * CELL;
         let r2 = self.config.estimate_radius.max(CELL).powi(2);
-        let mut result = None;
+        // Three mean-shift steps; the heading and mass come from the last step's window.
+        let mut window = None;
         for _ in 0..3 {
-            let (mut sw, mut sx, mut sy, mut ss, mut sc) = (0.0, 0.0, 0.0, 0.0, 0.0);
+            let (mut sw, mut sx, mut sy) = (0.0, 0.0, 0.0);
             for (p, w) in self.poses.iter().zip(&self.weights) {
                 if (p.x - cx).powi(2) + (p.y - cy).powi(2) <= r2 {
                     sw += w;
                     sx += w * p.x;
                     sy += w * p.y;
-                    ss += w * p.theta.sin();
-                    sc += w * p.theta.cos();
                 }
             }
             if sw <= 0.0 {
                 break;
             }
+            window = Some((cx, cy, sw));
             cx = sx / sw;
             cy = sy / sw;
-            result = Some((sw, wrap_angle(ss.atan2(sc))));
         }
-        let (mass, theta) = result?;
-        let mut var = 0.0;
-        let mut cov = nalgebra::Matrix3::<f64>::zeros();
+        let (wx, wy, mass) = window?;
+        let (mut ss, mut sc) = (0.0, 0.0);
         for (p, w) in self.poses.iter().zip(&self.weights) {
-            let d2 = (p.x - cx).powi(2) + (p.y - cy).powi(2);
-            if d2 <= r2 {
-                var += w * d2;
-                let e = nalgebra::Vector3::new(p.x - cx, p.y - cy, angle_diff(p.theta, theta));
-                cov += *w * e * e.transpose();
+            if (p.x - wx).powi(2) + (p.y - wy).powi(2) <= r2 {
+                let (s, c) = sincos(p.theta);
+                ss += w * s;
+                sc += w * c;
             }
         }
+        let theta = wrap_angle(ss.atan2(sc));
+        let mut var = 0.0;
+        let (mut xx, mut xy, mut xt, mut yy, mut yt, mut tt) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+        for (p, w) in self.poses.iter().zip(&self.weights) {
+            let (ex, ey) = (p.x - cx, p.y - cy);
+            let d2 = ex * ex + ey * ey;
+            if d2 <= r2 {
+                var += w * d2;
+                let et = angle_diff(p.theta, theta);
+                xx += w * ex * ex;
+                xy += w * ex * ey;
+                xt += w * ex * et;
+                yy += w * ey * ey;
+                yt += w * ey * et;
+                tt += w * et * et;
+            }
+        }
+        let cov = nalgebra::Matrix3::new(xx, xy, xt, xy, yy, yt, xt, yt, tt);
         Some(TrackEstimate {
             pose: Pose2::new(cx, cy, theta),
             spread: (var / mass).sqrt(),
             mass,
             covariance: cov / mass,
         })
+    }
+}
+
+/// Particle weight per 0.3 m cell: a dense grid over the cloud's bounding box when it is small,
+/// a hash map otherwise.
+enum CellWeights {
+    Dense {
+        x0: i64,
+        y0: i64,
+        nx: i64,
+        ny: i64,
+        w: Vec<f64>,
+    },
+    Sparse(std::collections::HashMap<(i64, i64), f64>),
+}
+
+impl CellWeights {
+    fn new(items: impl Iterator<Item = ((i64, i64), f64)> + Clone) -> Self {
+        let (mut x0, mut y0, mut x1, mut y1) = (i64::MAX, i64::MAX, i64::MIN, i64::MIN);
+        for ((x, y), _) in items.clone() {
+            x0 = x0.min(x);
+            y0 = y0.min(y);
+            x1 = x1.max(x);
+            y1 = y1.max(y);
+        }
+        let (nx, ny) = (x1.saturating_sub(x0) + 1, y1.saturating_sub(y0) + 1);
+        if x0 <= x1 && nx <= 256 && ny <= 256 {
+            let mut w = vec![0.0; (nx * ny) as usize];
+            for ((x, y), v) in items {
+                if let Some(c) = w.get_mut(((y - y0) * nx + (x - x0)) as usize) {
+                    *c += v;
+                }
+            }
+            Self::Dense { x0, y0, nx, ny, w }
+        } else {
+            let mut cells = std::collections::HashMap::new();
+            for (k, v) in items {
+                *cells.entry(k).or_insert(0.0) += v;
+            }
+            Self::Sparse(cells)
+        }
+    }
+
+    fn get(&self, k: (i64, i64)) -> f64 {
+        match self {
+            Self::Dense { x0, y0, nx, ny, w } => {
+                let (x, y) = (k.0 - x0, k.1 - y0);
+                if x < 0 || y < 0 || x >= *nx || y >= *ny {
+                    0.0
+                } else {
+                    w.get((y * nx + x) as usize).copied().unwrap_or(0.0)
+                }
+            }
+            Self::Sparse(m) => m.get(&k).copied().unwrap_or(0.0),
+        }
+    }
+
+    /// Cells holding particles (weight may be zero).
+    fn occupied(&self) -> Box<dyn Iterator<Item = (i64, i64)> + '_> {
+        match self {
+            Self::Dense { x0, y0, nx, w, .. } => Box::new(
+                w.iter()
+                    .enumerate()
+                    .filter(|(_, v)| **v > 0.0)
+                    .map(move |(i, _)| (x0 + i as i64 % nx, y0 + i as i64 / nx)),
+            ),
+            Self::Sparse(m) => Box::new(m.keys().copied()),
+        }
+    }
+
+    fn around(&self, k: (i64, i64)) -> f64 {
+        let mut sum = 0.0;
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                sum += self.get((k.0 + dx, k.1 + dy));
+            }
+        }
+        sum
     }
 }
 
@@ -570,6 +745,60 @@ mod tests {
         let (poses, weights) = f.particles();
         assert_eq!(poses.len(), weights.len());
         assert!((weights.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+    }
+
+    /// The inverted index gives the same matches as comparing with every fingerprint.
+    #[test]
+    fn matches_equal_a_full_scan() {
+        let mut samples = Vec::new();
+        for ix in 0..12 {
+            for iy in 0..12 {
+                let p = Pose2::new(0.2 * f64::from(ix), 0.2 * f64::from(iy), 0.3);
+                samples.push((snap(p.x, p.y, p.theta), p));
+            }
+        }
+        for distance in [
+            SnapshotDistance::RssL1,
+            SnapshotDistance::SeedScore { id_weight: 0.6 },
+        ] {
+            let map = FingerprintMap::new(samples.iter().map(|(s, p)| (s, *p)), distance);
+            for (q, _) in samples.iter().step_by(7) {
+                for k in [1, 5, 40, 400] {
+                    let fast = map.matches(q, k, 0.05);
+                    // Full scan: every fingerprint, stable sort by distance.
+                    let mut all: Vec<(f64, usize)> = samples
+                        .iter()
+                        .enumerate()
+                        .map(|(i, (s, _))| (distance.between(q, s), i))
+                        .collect();
+                    all.sort_by(|a, b| a.0.total_cmp(&b.0));
+                    let dmin = all[0].0;
+                    let slow: Vec<(Pose2, f64)> = all
+                        .iter()
+                        .take(k)
+                        .map(|(d, i)| (samples[*i].1, (-(d - dmin) / 0.05).exp()))
+                        .filter(|(_, w)| *w > (-8.0_f64).exp())
+                        .collect();
+                    assert_eq!(fast.len(), slow.len(), "k {k}");
+                    for (a, b) in fast.iter().zip(&slow) {
+                        assert_eq!(a.0, b.0);
+                        assert!((a.1 - b.1).abs() < 1e-9);
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn fast_sincos_matches_the_library() {
+        for i in -3000..3000 {
+            let th = f64::from(i) * 0.01171;
+            let (s, c) = sincos(th);
+            assert!(
+                (s - th.sin()).abs() < 1e-13 && (c - th.cos()).abs() < 1e-13,
+                "{th}"
+            );
+        }
     }
 
     #[test]

@@ -61,12 +61,13 @@ use rand_chacha::ChaCha8Rng;
 use rfloc_pose::{EstimateMode, Pose2};
 use rfloc_sim::recorder::TrialRecorder;
 use rfloc_sim::Scenario;
-use rfloc_snapshot::{state_set, store};
 use rfloc_snapshot::{
-    Action, ActionTable, CycleBreaker, ExplorationConfig, ExplorationInput, ExplorationPolicy,
-    FilterConfig, FingerprintMap, LatticeConfig, LearnConfig, Observation, ReadModel, Snapshot,
-    SnapshotDatabase, StateFilter, Survey, TagId, TagMap, TagMapConfig, TrackConfig, TrackFilter,
+    learn_jointly, Action, ActionTable, CycleBreaker, ExplorationConfig, ExplorationInput,
+    ExplorationPolicy, FilterConfig, FingerprintMap, JointConfig, LatticeConfig, LearnConfig,
+    Observation, ReadModel, Snapshot, SnapshotDatabase, StateFilter, Survey, TagId, TagMap,
+    TagMapConfig, TrackConfig, TrackFilter,
 };
+use rfloc_snapshot::{state_set, store};
 
 use super::SimOptions;
 use rfloc_daemon::events::DeviceEvent;
@@ -109,6 +110,10 @@ pub const CYCLE_WINDOW: usize = 16;
 pub const CYCLE_REPEATS: usize = 3;
 /// Rotation steps after a wheel stall during navigation (the plan already keeps off the walls).
 pub const NAV_STALL_TURN_STEPS: usize = 6;
+/// The seed's cluster databases (compared, not used by the robot) are learned from at most
+/// this many exploration steps: the dissimilarity matrix grows with the square of the steps
+/// (4 bytes each: 36 MB at this size).
+pub const CLUSTER_DB_MAX_STEPS: usize = 3000;
 /// Likelihood temperatures compared by replaying each trial's navigation sequence.
 pub const REPLAY_TAUS: [f64; 5] = [0.03, 0.06, 0.12, 0.25, 0.5];
 
@@ -362,6 +367,13 @@ fn replay_track_error(
     errors.mean()
 }
 
+/// Median of a list (NaN when empty).
+fn median(v: &[f64]) -> f64 {
+    let mut sorted = v.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    sorted.get(sorted.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
 /// Per-trial error accumulator.
 #[derive(Debug, Default)]
 struct Errors {
@@ -469,8 +481,47 @@ pub async fn run_trial(
     let empty = by_truth.iter().filter(|o| o.snapshot.is_empty()).count();
 
     // 2. Learning, atomic save, reload.
+    // The tag map and the exploration trajectory are learned together (`learn_jointly`: the
+    // odometry drifts, and a map placed along it blurs with the explored area); everything
+    // else is learned from that trajectory.
+    let (joint_samples, joint_model) = (
+        by_truth
+            .iter()
+            .map(|o| o.snapshot.clone())
+            .zip(odom_poses.iter().copied())
+            .collect::<Vec<_>>(),
+        read_model(scenario),
+    );
+    let joint_start = Instant::now();
+    let (learned_tags, smoothed, joint_report, odometry_tags) =
+        tokio::task::spawn_blocking(move || {
+            let pairs: Vec<(&Snapshot, Pose2)> =
+                joint_samples.iter().map(|(s, p)| (s, *p)).collect();
+            let (map, poses, report) = learn_jointly(
+                &pairs,
+                joint_model.clone(),
+                TagMapConfig::default(),
+                &JointConfig::default(),
+            );
+            // For comparison: the map placed along the odometry alone.
+            let plain = TagMap::learn(pairs.iter().copied(), joint_model, TagMapConfig::default());
+            (map, poses, report, plain)
+        })
+        .await
+        .map_err(|e| anyhow::anyhow!("tag mapping task failed: {e}"))?;
+    let joint_s = joint_start.elapsed().as_secs_f64();
+
+    // The seed's cluster databases (compared, not used by the robot): on the first
+    // `CLUSTER_DB_MAX_STEPS` steps of a long exploration (the dissimilarity matrix grows with
+    // the square of the steps).
+    let cluster_steps = by_truth.len().min(CLUSTER_DB_MAX_STEPS);
     let config = LearnConfig::default();
-    let (by_truth, learned) = learn_blocking(by_truth, config)
+    let mut cluster_obs = by_truth.clone();
+    cluster_obs.truncate(cluster_steps);
+    if let Some(last) = cluster_obs.last_mut() {
+        last.action = None;
+    }
+    let (cluster_obs, learned) = learn_blocking(cluster_obs, config)
         .await
         .context("learning the database")?;
     // Everything learned is written as one set (the database, the survey and the tag map
@@ -479,7 +530,7 @@ pub async fn run_trial(
     let db = SnapshotDatabase::from_json(&db_bytes, "snapshot-db.json")
         .context("reloading the database")?;
     let reload_diff = reload_difference(&learned, &db)?;
-    let by_odom: Vec<Observation> = by_truth
+    let by_odom: Vec<Observation> = cluster_obs
         .iter()
         .zip(&odom_poses)
         .map(|(o, p)| Observation {
@@ -492,35 +543,31 @@ pub async fn run_trial(
         .context("learning (odometry)")?;
     let odom_bytes = store::to_json(&odom_db, "snapshot-db-odometry.json")?;
 
-    // The survey: every exploration snapshot at the robot's odometry pose (a live robot
-    // localises from it and the tag map: `[estimator] survey`, `tag_map`); the fingerprints and
-    // the tag map are learned from the reloaded copy.
-    let survey_bytes =
-        store::to_json(
-            &Survey::with_actions(by_truth.iter().zip(&odom_poses).enumerate().map(
-                |(i, (o, p))| {
+    // The survey: every exploration snapshot at the robot's own estimate of where it was taken
+    // (the jointly smoothed trajectory; a live robot localises from it and the tag map:
+    // `[estimator] survey`, `tag_map`); the fingerprints are learned from the reloaded copy.
+    let survey_bytes = store::to_json(
+        &Survey::with_actions(
+            by_truth
+                .iter()
+                .zip(&smoothed)
+                .enumerate()
+                .map(|(i, (o, p))| {
                     (
                         &o.snapshot,
                         *p,
                         o.action,
                         stalled_steps.get(i).copied().unwrap_or(false),
                     )
-                },
-            )),
-            "survey.json",
-        )?;
+                }),
+        ),
+        "survey.json",
+    )?;
     let survey =
         Arc::new(Survey::from_json(&survey_bytes, "survey.json").context("reloading the survey")?);
     // The fine localisation map: the survey's snapshots as fingerprints.
     let fingerprints = survey.fingerprints(config.distance);
-    // The tag map: every tag read often enough, placed where its reads and misses along the
-    // exploration path (odometry poses) put it; used from the reloaded copy.
-    let (map_samples, map_model) = (Arc::clone(&survey), read_model(scenario));
-    let learned_tags = tokio::task::spawn_blocking(move || {
-        TagMap::learn(map_samples.pairs(), map_model, TagMapConfig::default())
-    })
-    .await
-    .map_err(|e| anyhow::anyhow!("tag mapping task failed: {e}"))?;
+    // The tag map, used from the reloaded copy.
     let tags_bytes = store::to_json(&learned_tags, "tag-map.json")?;
     let tag_map =
         TagMap::from_json(&tags_bytes, "tag-map.json").context("reloading the tag map")?;
@@ -534,19 +581,33 @@ pub async fn run_trial(
         ],
     )
     .with_context(|| format!("saving the learned state in {}", dir.display()))?;
-    let tag_errors: Vec<f64> = tag_map
-        .tags
+    // Errors of the learned tag positions and of the smoothed trajectory against the truth.
+    let world_tags: std::collections::HashMap<String, (f64, f64)> = scenario
+        .world
+        .uhf_tags
         .iter()
-        .filter_map(|t| {
-            let hex = t.id.to_string();
-            scenario
-                .world
-                .uhf_tags
-                .iter()
-                .find(|w| w.epc.eq_ignore_ascii_case(&hex))
-                .map(|w| (t.x - w.position.x).hypot(t.y - w.position.y))
-        })
+        .map(|w| (w.epc.to_ascii_uppercase(), (w.position.x, w.position.y)))
         .collect();
+    let errors_of = |map: &TagMap| -> Vec<f64> {
+        map.tags
+            .iter()
+            .filter_map(|t| {
+                let (x, y) = world_tags.get(&t.id.to_string().to_ascii_uppercase())?;
+                Some((t.x - x).hypot(t.y - y))
+            })
+            .collect()
+    };
+    let odometry_tag_errors = errors_of(&odometry_tags);
+    let trajectory_errors = |poses: &[Pose2]| -> Vec<f64> {
+        by_truth
+            .iter()
+            .zip(poses)
+            .map(|(o, p)| dist(&o.pose, p))
+            .collect()
+    };
+    let (smoothed_errors, odometry_errors) =
+        (trajectory_errors(&smoothed), trajectory_errors(&odom_poses));
+    let tag_errors = errors_of(&tag_map);
     // The plan: the learned motion of each action (mean odometry increment of the surveyed
     // steps that did not stall) and the places where the wheels stalled, from the survey.
     let goal_radius = GOAL_FRACTION * tolerance;
@@ -765,17 +826,35 @@ pub async fn run_trial(
     }
     rec.metric("mapped_tags", tag_map.len() as f64);
     if !tag_errors.is_empty() {
-        let mut sorted = tag_errors.clone();
-        sorted.sort_by(f64::total_cmp);
-        rec.metric(
-            "tag_map_median_error_m",
-            sorted.get(sorted.len() / 2).copied().unwrap_or(f64::NAN),
-        );
+        rec.metric("tag_map_median_error_m", median(&tag_errors));
         rec.metric(
             "tag_map_mean_error_m",
             tag_errors.iter().sum::<f64>() / tag_errors.len() as f64,
         );
     }
+    if !odometry_tag_errors.is_empty() {
+        rec.metric(
+            "tag_map_odometry_median_error_m",
+            median(&odometry_tag_errors),
+        );
+    }
+    rec.metric("survey_median_error_m", median(&smoothed_errors));
+    rec.metric("survey_odometry_median_error_m", median(&odometry_errors));
+    rec.metric(
+        "survey_max_error_m",
+        smoothed_errors.iter().copied().fold(0.0, f64::max),
+    );
+    rec.metric(
+        "survey_odometry_max_error_m",
+        odometry_errors.iter().copied().fold(0.0, f64::max),
+    );
+    rec.metric("joint_mean_correction_m", joint_report.mean_correction_m);
+    rec.metric(
+        "joint_last_round_change_m",
+        joint_report.last_round_change_m,
+    );
+    rec.metric("joint_learning_s", joint_s);
+    rec.metric("cluster_database_steps", cluster_steps as f64);
     rec.metric("states", db.states.len() as f64);
     rec.metric("fingerprints", fingerprints.len() as f64);
     rec.metric("lattice_sweeps", lattice.sweeps as f64);

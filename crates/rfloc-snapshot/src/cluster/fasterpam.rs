@@ -17,13 +17,6 @@ use crate::distance::DissimilarityMatrix;
 /// Improvements smaller than this are treated as no improvement (guards against float cycles).
 const MIN_GAIN: f64 = 1e-12;
 
-#[derive(Debug, Clone, Copy)]
-struct Rank {
-    /// Index into the medoid list.
-    slot: usize,
-    dist: f64,
-}
-
 /// Seeded k-means++-style initialisation: the first medoid uniformly, then each next medoid with
 /// probability proportional to the squared distance to the nearest chosen one.
 #[must_use]
@@ -34,10 +27,16 @@ pub fn init_kmeanspp(d: &DissimilarityMatrix, k: usize, seed: u64) -> Vec<usize>
         return Vec::new();
     }
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let mut medoids = vec![rng.random_range(0..n)];
-    let mut nearest: Vec<f64> = (0..n).map(|o| d.get(o, medoids[0])).collect();
+    let first = rng.random_range(0..n);
+    let mut medoids = vec![first];
+    let mut chosen = vec![false; n];
+    if let Some(c) = chosen.get_mut(first) {
+        *c = true;
+    }
+    let mut nearest: Vec<f64> = d.row(first).iter().map(|&x| f64::from(x)).collect();
+    // Squared distances to the nearest chosen medoid, and their sum.
+    let mut weights: Vec<f64> = nearest.iter().map(|x| x * x).collect();
     while medoids.len() < k {
-        let weights: Vec<f64> = nearest.iter().map(|x| x * x).collect();
         let total: f64 = weights.iter().sum();
         let next = if total > 0.0 {
             let mut target = rng.random::<f64>() * total;
@@ -58,65 +57,208 @@ pub fn init_kmeanspp(d: &DissimilarityMatrix, k: usize, seed: u64) -> Vec<usize>
         // All remaining objects coincide with a medoid: take the first non-medoid.
         let next = match next {
             Some(i) => i,
-            None => match (0..n).find(|i| !medoids.contains(i)) {
+            None => match chosen.iter().position(|c| !c) {
                 Some(i) => i,
                 None => break,
             },
         };
         medoids.push(next);
-        for (o, near) in nearest.iter_mut().enumerate() {
-            *near = near.min(d.get(o, next));
+        if let Some(c) = chosen.get_mut(next) {
+            *c = true;
+        }
+        for ((near, w), &dn) in nearest.iter_mut().zip(weights.iter_mut()).zip(d.row(next)) {
+            let dn = f64::from(dn);
+            if dn < *near {
+                *near = dn;
+                *w = dn * dn;
+            }
         }
     }
     medoids
 }
 
-fn rank_all(d: &DissimilarityMatrix, medoids: &[usize], o: usize) -> (Rank, Rank) {
-    let mut best = Rank {
-        slot: 0,
-        dist: f64::INFINITY,
-    };
-    let mut second = Rank {
-        slot: 0,
-        dist: f64::INFINITY,
-    };
-    for (slot, &m) in medoids.iter().enumerate() {
-        let dist = d.get(o, m);
-        if dist < best.dist {
-            second = best;
-            best = Rank { slot, dist };
-        } else if dist < second.dist {
-            second = Rank { slot, dist };
-        }
-    }
-    (best, second)
+/// Nearest and second-nearest medoid of every object, as parallel arrays.
+struct Caches {
+    near_slot: Vec<u32>,
+    near: Vec<f32>,
+    sec_slot: Vec<u32>,
+    sec: Vec<f32>,
 }
 
-fn second_excluding(d: &DissimilarityMatrix, medoids: &[usize], o: usize, exclude: usize) -> Rank {
-    let mut second = Rank {
-        slot: exclude,
-        dist: f64::INFINITY,
+impl Caches {
+    fn new(d: &DissimilarityMatrix, medoids: &[usize]) -> Self {
+        let n = d.len();
+        let mut c = Self {
+            near_slot: vec![0; n],
+            near: vec![f32::INFINITY; n],
+            sec_slot: vec![0; n],
+            sec: vec![f32::INFINITY; n],
+        };
+        for (slot, &m) in medoids.iter().enumerate() {
+            for (o, &dist) in d.row(m).iter().enumerate() {
+                c.offer(o, slot as u32, dist);
+            }
+        }
+        c
+    }
+
+    /// Takes medoid `slot` at distance `dist` into object `o`'s nearest/second ranking.
+    #[inline]
+    fn offer(&mut self, o: usize, slot: u32, dist: f32) {
+        let (Some(ns), Some(nd), Some(ss), Some(sd)) = (
+            self.near_slot.get_mut(o),
+            self.near.get_mut(o),
+            self.sec_slot.get_mut(o),
+            self.sec.get_mut(o),
+        ) else {
+            return;
+        };
+        if dist < *nd {
+            *ss = *ns;
+            *sd = *nd;
+            *ns = slot;
+            *nd = dist;
+        } else if dist < *sd {
+            *ss = slot;
+            *sd = dist;
+        }
+    }
+
+    /// Removal loss of every slot: `Σ_{o nearest to it} (d_s(o) − d_n(o))`.
+    fn removal_loss(&self, loss: &mut [f64]) {
+        loss.iter_mut().for_each(|l| *l = 0.0);
+        for ((&slot, &n), &s) in self.near_slot.iter().zip(&self.near).zip(&self.sec) {
+            if let Some(l) = loss.get_mut(slot as usize) {
+                *l += f64::from(s) - f64::from(n);
+            }
+        }
+    }
+}
+
+/// Slot of each object that is a medoid (`NOT_MEDOID` otherwise).
+const NOT_MEDOID: u32 = u32::MAX;
+
+/// Nearest medoid of object `o` not in slot `exclude`: a pass over `o`'s row (contiguous,
+/// eight lanes at a time) instead of a look-up per medoid (scattered), with `slot_of` marking
+/// the medoids. Ties go to the lowest object index.
+fn second_excluding(
+    d: &DissimilarityMatrix,
+    slot_of: &[u32],
+    o: usize,
+    exclude: u32,
+) -> (u32, f32) {
+    const L: usize = 8;
+    let row = d.row(o);
+    let masked = |dist: f32, slot: u32| {
+        if slot != NOT_MEDOID && slot != exclude {
+            dist
+        } else {
+            f32::INFINITY
+        }
     };
-    for (slot, &m) in medoids.iter().enumerate() {
-        if slot == exclude {
+    let mut lanes = [f32::INFINITY; L];
+    for (r, s) in row.chunks_exact(L).zip(slot_of.chunks_exact(L)) {
+        let (Ok(r), Ok(s)) = (<&[f32; L]>::try_from(r), <&[u32; L]>::try_from(s)) else {
             continue;
-        }
-        let dist = d.get(o, m);
-        if dist < second.dist {
-            second = Rank { slot, dist };
+        };
+        for l in 0..L {
+            let v = masked(r[l], s[l]);
+            lanes[l] = if v < lanes[l] { v } else { lanes[l] };
         }
     }
-    second
+    let tail = row.len() - row.len() % L;
+    let mut best = lanes
+        .iter()
+        .fold(f32::INFINITY, |a, &b| if b < a { b } else { a });
+    for (&r, &s) in row.iter().zip(slot_of).skip(tail) {
+        let v = masked(r, s);
+        best = if v < best { v } else { best };
+    }
+    if best == f32::INFINITY {
+        return (exclude, f32::INFINITY);
+    }
+    row.iter()
+        .zip(slot_of)
+        .find(|(r, s)| masked(**r, **s) == best)
+        .map_or((exclude, f32::INFINITY), |(_, s)| (*s, best))
 }
 
-fn removal_loss(near: &[Rank], sec: &[Rank], k: usize) -> Vec<f64> {
-    let mut loss = vec![0.0; k];
-    for (n, s) in near.iter().zip(sec) {
-        if let Some(l) = loss.get_mut(n.slot) {
-            *l += s.dist - n.dist;
+/// Slot and value of the smallest entry (the first on ties).
+fn argmin(v: &[f64]) -> (usize, f64) {
+    const L: usize = 4;
+    let mut lanes = [f64::INFINITY; L];
+    for c in v.chunks_exact(L) {
+        if let Ok(c) = <&[f64; L]>::try_from(c) {
+            for l in 0..L {
+                lanes[l] = if c[l] < lanes[l] { c[l] } else { lanes[l] };
+            }
         }
     }
-    loss
+    let tail = v.len() - v.len() % L;
+    let mut best = lanes
+        .iter()
+        .fold(f64::INFINITY, |a, &b| if b < a { b } else { a });
+    for &x in v.iter().skip(tail) {
+        best = if x < best { x } else { best };
+    }
+    match v.iter().position(|&x| x == best) {
+        Some(i) => (i, best),
+        None => (0, f64::INFINITY),
+    }
+}
+
+/// The change of total deviation for swapping candidate row `row` into each slot: fills
+/// `delta` (per slot) and returns the part shared by every slot.
+#[inline]
+fn swap_gains(row: &[f32], c: &Caches, loss_rm: &[f64], delta: &mut [f64]) -> f64 {
+    const L: usize = 8;
+    delta.copy_from_slice(loss_rm);
+    let mut acc = 0.0;
+    let mut one = |doj: f32, dn: f32, ds: f32, ns: u32| {
+        // Differences in double precision: the gains must add up exactly as the loss does.
+        if doj < dn {
+            acc += f64::from(doj) - f64::from(dn);
+            if let Some(x) = delta.get_mut(ns as usize) {
+                *x += f64::from(dn) - f64::from(ds);
+            }
+        } else if doj < ds {
+            if let Some(x) = delta.get_mut(ns as usize) {
+                *x += f64::from(doj) - f64::from(ds);
+            }
+        }
+    };
+    // Most objects are farther from the candidate than from their second medoid and change
+    // nothing: test eight at a time (one vector compare) and look closer only at a hit.
+    let chunks = row
+        .chunks_exact(L)
+        .zip(c.near.chunks_exact(L))
+        .zip(c.sec.chunks_exact(L))
+        .zip(c.near_slot.chunks_exact(L));
+    for (((r, n), s), k) in chunks {
+        let (Ok(r), Ok(s)) = (<&[f32; L]>::try_from(r), <&[f32; L]>::try_from(s)) else {
+            continue;
+        };
+        let mut hit = false;
+        for l in 0..L {
+            hit |= r[l] < s[l];
+        }
+        if hit {
+            for (((&doj, &dn), &ds), &ns) in r.iter().zip(n).zip(s).zip(k) {
+                one(doj, dn, ds, ns);
+            }
+        }
+    }
+    let tail = row.len() - row.len() % L;
+    let rest = row
+        .iter()
+        .zip(&c.near)
+        .zip(&c.sec)
+        .zip(&c.near_slot)
+        .skip(tail);
+    for (((&doj, &dn), &ds), &ns) in rest {
+        one(doj, dn, ds, ns);
+    }
+    acc
 }
 
 /// Runs FasterPAM from the given initial medoids (object indices, duplicates removed).
@@ -127,9 +269,13 @@ fn removal_loss(near: &[Rank], sec: &[Rank], k: usize) -> Vec<f64> {
 pub fn fasterpam(d: &DissimilarityMatrix, init: Vec<usize>, max_iter: usize) -> Clustering {
     let n = d.len();
     let mut medoids: Vec<usize> = Vec::with_capacity(init.len());
+    let mut slot_of = vec![NOT_MEDOID; n];
     for m in init {
-        if m < n && !medoids.contains(&m) {
-            medoids.push(m);
+        if let Some(f) = slot_of.get_mut(m) {
+            if *f == NOT_MEDOID {
+                *f = medoids.len() as u32;
+                medoids.push(m);
+            }
         }
     }
     let k = medoids.len();
@@ -142,18 +288,12 @@ pub fn fasterpam(d: &DissimilarityMatrix, init: Vec<usize>, max_iter: usize) -> 
             swaps: 0,
         };
     }
-    let mut is_medoid = vec![false; n];
-    for &m in &medoids {
-        if let Some(f) = is_medoid.get_mut(m) {
-            *f = true;
-        }
-    }
-    let (mut near, mut sec): (Vec<Rank>, Vec<Rank>) =
-        (0..n).map(|o| rank_all(d, &medoids, o)).unzip();
+    let mut caches = Caches::new(d, &medoids);
     let mut iterations = 0;
     let mut swaps = 0;
     if k < n {
-        let mut loss_rm = removal_loss(&near, &sec, k);
+        let mut loss_rm = vec![0.0; k];
+        caches.removal_loss(&mut loss_rm);
         let mut last_swap: Option<usize> = None;
         let mut delta = vec![0.0; k];
         'passes: while iterations < max_iter {
@@ -163,52 +303,26 @@ pub fn fasterpam(d: &DissimilarityMatrix, init: Vec<usize>, max_iter: usize) -> 
                 if last_swap == Some(xc) {
                     break 'passes;
                 }
-                if is_medoid.get(xc).copied().unwrap_or(true) {
+                if slot_of.get(xc).is_none_or(|s| *s != NOT_MEDOID) {
                     continue;
                 }
-                let (best_slot, total) =
-                    if k == 1 {
-                        // Only one medoid: the change is the total deviation difference.
-                        let td: f64 = (0..n)
-                            .map(|o| d.get(o, xc) - near.get(o).map_or(0.0, |r| r.dist))
-                            .sum();
-                        (0, td)
-                    } else {
-                        delta.copy_from_slice(&loss_rm);
-                        let mut acc = 0.0;
-                        for o in 0..n {
-                            let (Some(no), Some(so)) = (near.get(o), sec.get(o)) else {
-                                continue;
-                            };
-                            let doj = d.get(o, xc);
-                            if doj < no.dist {
-                                acc += doj - no.dist;
-                                if let Some(x) = delta.get_mut(no.slot) {
-                                    *x += no.dist - so.dist;
-                                }
-                            } else if doj < so.dist {
-                                if let Some(x) = delta.get_mut(no.slot) {
-                                    *x += doj - so.dist;
-                                }
-                            }
-                        }
-                        let (slot, best) = delta.iter().copied().enumerate().fold(
-                            (0, f64::INFINITY),
-                            |b, (i, v)| if v < b.1 { (i, v) } else { b },
-                        );
-                        (slot, best + acc)
-                    };
+                let row = d.row(xc);
+                let (best_slot, total) = if k == 1 {
+                    // Only one medoid: the change is the total deviation difference.
+                    let td: f64 = row
+                        .iter()
+                        .zip(&caches.near)
+                        .map(|(a, b)| f64::from(*a) - f64::from(*b))
+                        .sum();
+                    (0, td)
+                } else {
+                    let acc = swap_gains(row, &caches, &loss_rm, &mut delta);
+                    let (slot, best) = argmin(&delta);
+                    (slot, best + acc)
+                };
                 if total < -MIN_GAIN {
-                    apply_swap(
-                        d,
-                        &mut medoids,
-                        &mut is_medoid,
-                        &mut near,
-                        &mut sec,
-                        best_slot,
-                        xc,
-                    );
-                    loss_rm = removal_loss(&near, &sec, k);
+                    apply_swap(d, &mut medoids, &mut slot_of, &mut caches, best_slot, xc);
+                    caches.removal_loss(&mut loss_rm);
                     swaps += 1;
                     last_swap = Some(xc);
                 }
@@ -218,8 +332,8 @@ pub fn fasterpam(d: &DissimilarityMatrix, init: Vec<usize>, max_iter: usize) -> 
             }
         }
     }
-    let loss = near.iter().map(|r| r.dist).sum();
-    let assignment = near.iter().map(|r| r.slot).collect();
+    let loss = caches.near.iter().map(|&x| f64::from(x)).sum();
+    let assignment = caches.near_slot.iter().map(|&s| s as usize).collect();
     Clustering {
         medoids,
         assignment,
@@ -232,45 +346,106 @@ pub fn fasterpam(d: &DissimilarityMatrix, init: Vec<usize>, max_iter: usize) -> 
 fn apply_swap(
     d: &DissimilarityMatrix,
     medoids: &mut [usize],
-    is_medoid: &mut [bool],
-    near: &mut [Rank],
-    sec: &mut [Rank],
+    slot_of: &mut [u32],
+    c: &mut Caches,
     slot: usize,
     xc: usize,
 ) {
     if let Some(old) = medoids.get(slot).copied() {
-        if let Some(f) = is_medoid.get_mut(old) {
-            *f = false;
+        if let Some(f) = slot_of.get_mut(old) {
+            *f = NOT_MEDOID;
         }
     }
     if let Some(m) = medoids.get_mut(slot) {
         *m = xc;
     }
-    if let Some(f) = is_medoid.get_mut(xc) {
-        *f = true;
+    if let Some(f) = slot_of.get_mut(xc) {
+        *f = slot as u32;
     }
-    for (o, (no, so)) in near.iter_mut().zip(sec.iter_mut()).enumerate() {
-        let dn = d.get(o, xc);
-        if no.slot == slot {
-            if dn <= so.dist {
-                no.dist = dn;
-            } else {
-                *no = *so;
-                *so = second_excluding(d, medoids, o, no.slot);
+    let row = d.row(xc);
+    let slot = slot as u32;
+    // Only objects nearer to the new medoid than to their second one, or ranked on the
+    // replaced slot, change: test eight at a time first.
+    const L: usize = 8;
+    let n = row.len();
+    let mut start = 0;
+    while start < n {
+        let end = (start + L).min(n);
+        let affected = match (
+            row.get(start..end),
+            c.sec.get(start..end),
+            c.near_slot.get(start..end),
+            c.sec_slot.get(start..end),
+        ) {
+            (Some(r), Some(sd), Some(ns), Some(ss)) if end - start == L => {
+                let mut hit = false;
+                for l in 0..L {
+                    hit |= (r[l] < sd[l]) | (ns[l] == slot) | (ss[l] == slot);
+                }
+                hit
             }
-        } else if so.slot == slot {
-            if dn < no.dist {
-                *so = *no;
-                *no = Rank { slot, dist: dn };
-            } else {
-                *so = second_excluding(d, medoids, o, no.slot);
+            _ => true,
+        };
+        if affected {
+            for o in start..end {
+                update_object(
+                    d,
+                    slot_of,
+                    c,
+                    slot,
+                    o,
+                    row.get(o).copied().unwrap_or(f32::INFINITY),
+                );
             }
-        } else if dn < no.dist {
-            *so = *no;
-            *no = Rank { slot, dist: dn };
-        } else if dn < so.dist {
-            *so = Rank { slot, dist: dn };
         }
+        start = end;
+    }
+}
+
+/// Re-ranks object `o` after the medoid in `slot` became one at distance `dn` from it.
+fn update_object(
+    d: &DissimilarityMatrix,
+    slot_of: &[u32],
+    c: &mut Caches,
+    slot: u32,
+    o: usize,
+    dn: f32,
+) {
+    let (Some(ns), Some(nd), Some(ss), Some(sd)) = (
+        c.near_slot.get(o).copied(),
+        c.near.get(o).copied(),
+        c.sec_slot.get(o).copied(),
+        c.sec.get(o).copied(),
+    ) else {
+        return;
+    };
+    let (near, sec) = if ns == slot {
+        if dn <= sd {
+            ((ns, dn), (ss, sd))
+        } else {
+            ((ss, sd), second_excluding(d, slot_of, o, ss))
+        }
+    } else if ss == slot {
+        if dn < nd {
+            ((slot, dn), (ns, nd))
+        } else {
+            ((ns, nd), second_excluding(d, slot_of, o, ns))
+        }
+    } else if dn < nd {
+        ((slot, dn), (ns, nd))
+    } else if dn < sd {
+        ((ns, nd), (slot, dn))
+    } else {
+        return;
+    };
+    if let (Some(a), Some(b), Some(e), Some(f)) = (
+        c.near_slot.get_mut(o),
+        c.near.get_mut(o),
+        c.sec_slot.get_mut(o),
+        c.sec.get_mut(o),
+    ) {
+        (*a, *b) = near;
+        (*e, *f) = sec;
     }
 }
 

@@ -60,6 +60,26 @@ impl World {
         }
     }
 
+    /// A square of `size` metres with `per_m2` random tags per square metre (the seed's
+    /// density is 32), threshold 1000.
+    pub fn square(seed: u64, size: f64, per_m2: f64, rss_noise: f64) -> Self {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let count = (size * size * per_m2).round() as usize;
+        let tags: Vec<(f64, f64)> = (0..count)
+            .map(|_| (rng.random::<f64>() * size, rng.random::<f64>() * size))
+            .collect();
+        let ids = (0..tags.len())
+            .map(|i| TagId::new(format!("E2009033{i:08X}").into_bytes()))
+            .collect();
+        Self {
+            size,
+            tags,
+            ids,
+            threshold: 1000.0,
+            rss_noise,
+        }
+    }
+
     pub fn snapshot(&self, pose: &Pose2, rng: &mut ChaCha8Rng) -> Snapshot {
         let (s, c) = pose.theta.sin_cos();
         let mut snap = Snapshot::new();

@@ -1,0 +1,721 @@
+//! Precomputed tables of the reader model, so that scoring a pose or a tag position costs table
+//! look-ups instead of an `exp` and a `ln` per tag.
+//!
+//! - [`ReadTable`]: over the antenna frame `(x, |y|)` on a 1 cm grid, the model's mean RSS `m`
+//!   and the miss term `max(ln(1 − P_read(m)), −floor)` of a tag there (0 when the tag is out of
+//!   view: behind the antenna or beyond the reach; a tag in view stores at most `−1e−7`, so the
+//!   sign says whether it is in view). The outermost rows and columns are zero: anything
+//!   outside the table reads as "far away".
+//! - [`MissField`]: the sum of the miss terms of **every** mapped tag in view, and their number,
+//!   as a function of the antenna pose `(x, y, θ)`, on a 5 cm × 5 cm × 64-heading lattice,
+//!   interpolated trilinearly. It is computed lazily in tiles of 0.8 m × 0.8 m (all headings)
+//!   the first time a pose in the tile is scored, and shared by clones of the map.
+//!
+//! With both, the snapshot log-likelihood of a pose is
+//! `M(pose) + Σ_{read mapped tags} (g_i − v_i)`, with `g_i` the read tag's floored Gaussian
+//! term and `v_i` its miss term (which `M` counted although the tag was read): the work per
+//! pose grows with the tags in the snapshot, not with the tags in view.
+
+use std::f64::consts::TAU;
+use std::sync::OnceLock;
+
+use crate::tagmap::ReadModel;
+
+/// Grid step of the antenna-frame table, metres.
+const TABLE_STEP: f64 = 0.01;
+/// Cells per side of the table (a power of two: indices need no bounds check). The table
+/// covers `x ∈ [TABLE_X0, TABLE_X0 + 2.55]`, `|y| ≤ 2.55`; beyond, a read tag counts as far
+/// away (mean RSS 0).
+const TABLE_N: usize = 256;
+const TABLE_X0: f64 = -0.06;
+/// Stored miss term of an in-view tag is at most this (so that it is negative).
+const IN_VIEW_MARK: f64 = -1e-7;
+/// Step of the mean-RSS axis of the 1-D miss table, reader units.
+const MISS_STEP: f64 = 1.0;
+
+/// Node spacing of the miss field, metres.
+pub(crate) const FIELD_STEP: f64 = 0.05;
+/// Headings of the miss field over 2π.
+pub(crate) const FIELD_HEADINGS: usize = 64;
+/// Cells per tile side.
+const TILE: usize = 16;
+/// Nodes per tile side (a tile holds the nodes on its far edges too).
+const TILE_NODES: usize = TILE + 1;
+
+/// Nearest integer of `x` (ties to even) for `|x| < 2⁵¹`, by adding and subtracting 1.5·2⁵²
+/// (the baseline x86-64 target has no rounding instruction, and the library call is slow).
+#[inline]
+#[must_use]
+pub(crate) fn round_f64(x: f64) -> f64 {
+    const MAGIC: f64 = 6_755_399_441_055_744.0;
+    if x.abs() < 2_251_799_813_685_248.0 {
+        (x + MAGIC) - MAGIC
+    } else {
+        x
+    }
+}
+
+/// `⌊x⌋` for `|x| < 2⁵¹` (see [`round_f64`]).
+#[inline]
+#[must_use]
+pub(crate) fn floor_f64(x: f64) -> f64 {
+    let r = round_f64(x);
+    if r > x {
+        r - 1.0
+    } else {
+        r
+    }
+}
+
+/// The lattice node below `f` (taken modulo 2⁵¹ for negative `f`) and the weight of the next
+/// one, `f − node` in `[0, 1]`, without float-to-integer conversions: `f − ½ + 1.5·2⁵²` holds
+/// `round(f − ½)` in its low mantissa bits. When `f` is an integer the node may be `f − 1` with
+/// weight 1, which interpolates to the same value.
+#[inline]
+fn lower_node(f: f64) -> (usize, f32) {
+    const MAGIC: f64 = 6_755_399_441_055_744.0;
+    let r = (f - 0.5) + MAGIC;
+    let node = r - MAGIC;
+    #[allow(clippy::cast_possible_truncation)]
+    let w = ((f - node) as f32).clamp(0.0, 1.0);
+    #[allow(clippy::cast_possible_truncation)]
+    ((r.to_bits() & ((1 << 51) - 1)) as usize, w)
+}
+
+/// Lanes of the chunked loops over poses (the compiler keeps a chunk in vector registers).
+pub(crate) const LANES: usize = 8;
+
+/// `sin θ`, `cos θ` in single precision (polynomials after reduction to `[−π/4, π/4]`; error
+/// below 1e−6).
+#[must_use]
+pub(crate) fn sincos_f32(theta: f64) -> (f32, f32) {
+    let q = round_f64(theta * std::f64::consts::FRAC_2_PI);
+    #[allow(clippy::cast_possible_truncation)]
+    let r = (theta - q * std::f64::consts::FRAC_PI_2) as f32;
+    let r2 = r * r;
+    let s = r * (1.0 + r2 * (-1.0 / 6.0 + r2 * (1.0 / 120.0 + r2 * (-1.0 / 5040.0))));
+    let c = 1.0 + r2 * (-0.5 + r2 * (1.0 / 24.0 + r2 * (-1.0 / 720.0 + r2 * (1.0 / 40320.0))));
+    #[allow(clippy::cast_possible_truncation)]
+    match (q as i64) & 3 {
+        0 => (s, c),
+        1 => (c, -s),
+        2 => (-s, -c),
+        _ => (-c, s),
+    }
+}
+
+/// Antenna poses of many robot poses in single precision, relative to an origin, padded to a
+/// multiple of [`LANES`] (padding lies far away and scores nothing useful).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct PoseLanes {
+    pub(crate) x: Vec<f32>,
+    pub(crate) y: Vec<f32>,
+    pub(crate) cos: Vec<f32>,
+    pub(crate) sin: Vec<f32>,
+}
+
+impl PoseLanes {
+    /// Clears and pads to hold `n` poses (`n` rounded up to lanes).
+    pub(crate) fn reset(&mut self, n: usize) {
+        let padded = n.div_ceil(LANES) * LANES;
+        for (v, fill) in [
+            (&mut self.x, 1.0e7),
+            (&mut self.y, 1.0e7),
+            (&mut self.cos, 1.0),
+            (&mut self.sin, 0.0),
+        ] {
+            v.clear();
+            v.resize(padded, fill);
+        }
+    }
+}
+
+/// The reader model tabulated for one floor (see the module documentation).
+#[derive(Clone)]
+pub(crate) struct ReadTable {
+    /// The model and floor the table was built for.
+    pub(crate) model: ReadModel,
+    pub(crate) floor: f64,
+    /// Reach of the model (in view: `d ≤ reach` and in front), metres.
+    pub(crate) reach: f64,
+    /// Row-major `[iy][ix]`: (mean RSS, miss term). Shared: maps learned in rounds reuse it.
+    cells: std::sync::Arc<[[f32; 2]; TABLE_N * TABLE_N]>,
+    /// Miss term by mean RSS, `MISS_STEP` apart, for the field.
+    miss: std::sync::Arc<[f64]>,
+}
+
+impl std::fmt::Debug for ReadTable {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ReadTable")
+            .field("floor", &self.floor)
+            .field("reach", &self.reach)
+            .finish_non_exhaustive()
+    }
+}
+
+/// The miss term of a tag of mean RSS `m` in view.
+pub(crate) fn miss_term(model: &ReadModel, floor: f64, m: f64) -> f64 {
+    (1.0 - model.read_probability(m))
+        .max(1e-300)
+        .ln()
+        .max(-floor)
+}
+
+impl ReadTable {
+    /// Tabulates `model` with terms floored at `−floor`.
+    #[must_use]
+    pub(crate) fn new(model: &ReadModel, floor: f64) -> Self {
+        let reach = model.reach();
+        let (nx, ny) = (TABLE_N, TABLE_N);
+        // Built on the heap (the array is 512 KiB); the conversion cannot fail.
+        let mut cells: Box<[[f32; 2]; TABLE_N * TABLE_N]> = vec![[0.0_f32; 2]; TABLE_N * TABLE_N]
+            .into_boxed_slice()
+            .try_into()
+            .unwrap_or_else(|_| Box::new([[0.0_f32; 2]; TABLE_N * TABLE_N]));
+        let mut top = 0.0_f64;
+        for (iy, row) in cells.chunks_exact_mut(TABLE_N).enumerate() {
+            if iy + 1 == ny {
+                break;
+            }
+            #[allow(clippy::cast_precision_loss)]
+            let y = iy as f64 * TABLE_STEP;
+            for (ix, cell) in row.iter_mut().enumerate() {
+                if ix == 0 || ix + 1 == nx {
+                    continue;
+                }
+                #[allow(clippy::cast_precision_loss)]
+                let x = TABLE_X0 + ix as f64 * TABLE_STEP;
+                let m = model.mean_rss(x, y);
+                top = top.max(m);
+                let in_view = x >= 0.0 && x.hypot(y) <= reach;
+                let v = if in_view {
+                    miss_term(model, floor, m).min(IN_VIEW_MARK)
+                } else {
+                    0.0
+                };
+                #[allow(clippy::cast_possible_truncation)]
+                {
+                    *cell = [m as f32, v as f32];
+                }
+            }
+        }
+        // On-axis mean RSS is largest at the antenna; tabulate the miss term up to it.
+        top = top.max(model.mean_rss(0.0, 0.0));
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let n = (top / MISS_STEP).ceil().clamp(1.0, 1e6) as usize + 2;
+        #[allow(clippy::cast_precision_loss)]
+        let miss = (0..n)
+            .map(|i| miss_term(model, floor, i as f64 * MISS_STEP))
+            .collect();
+        Self {
+            model: model.clone(),
+            floor,
+            reach,
+            cells: cells.into(),
+            miss,
+        }
+    }
+
+    /// Index of the cell nearest to antenna-frame `(x, y)`, clamped to the zero border.
+    /// Branch-free and without float-to-integer conversions (which are branchy on the
+    /// baseline target): a value `0 ≤ v < 2²³` added to 2²³ holds `round(v)` in the low
+    /// mantissa bits, so loops over many poses vectorise.
+    #[inline]
+    #[must_use]
+    fn index(x: f32, y: f32) -> u32 {
+        const TWO_23: f32 = 8_388_608.0;
+        #[allow(clippy::cast_possible_truncation)]
+        let inv = (1.0 / TABLE_STEP) as f32;
+        #[allow(clippy::cast_possible_truncation)]
+        let x0 = TABLE_X0 as f32;
+        #[allow(clippy::cast_precision_loss)]
+        let top = (TABLE_N - 1) as f32;
+        let fx = (x - x0) * inv;
+        let fx = if fx > 0.0 { fx } else { 0.0 };
+        let fx = if fx < top { fx } else { top };
+        let fy = y.abs() * inv;
+        let fy = if fy < top { fy } else { top };
+        let ix = (fx + TWO_23).to_bits() & 0x7F_FFFF;
+        let iy = (fy + TWO_23).to_bits() & 0x7F_FFFF;
+        ((iy << 8) | ix) & 0xFFFF
+    }
+
+    /// Adds one read tag's terms to every pose of `poses`: at tag position `(tx, ty)` (same
+    /// origin as the poses) read with RSS `r`, `acc += max(−½((r − m)/σ)², −floor) − v` (its
+    /// Gaussian term replaces the miss term `v` the field counted) and `terms += 1` unless the
+    /// field counted it already (in view). With `reads_only`, nothing is subtracted and every
+    /// read tag is a term (no field was added). `cells` is scratch of the poses' length.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn add_read(
+        &self,
+        (tx, ty, r): (f32, f32, f32),
+        inv_sigma: f32,
+        floor: f32,
+        reads_only: bool,
+        poses: &PoseLanes,
+        cells: &mut [u32],
+        gathered: &mut [[f32; 2]],
+        acc: &mut [f32],
+        terms: &mut [f32],
+    ) {
+        // The tag in each antenna's frame, as a table cell (vectorised).
+        let frames = poses
+            .x
+            .iter()
+            .zip(&poses.y)
+            .zip(poses.cos.iter().zip(&poses.sin));
+        for (i, ((&x, &y), (&c, &s))) in cells.iter_mut().zip(frames) {
+            let (dx, dy) = (tx - x, ty - y);
+            *i = Self::index(c * dx + s * dy, c * dy - s * dx);
+        }
+        // Gather (scalar; the index is below the table's size by construction).
+        for (g, &i) in gathered.iter_mut().zip(cells.iter()) {
+            *g = self.cells[i as usize & (TABLE_N * TABLE_N - 1)];
+        }
+        // Terms (vectorised).
+        if reads_only {
+            for ((a, k), g) in acc.iter_mut().zip(terms.iter_mut()).zip(gathered.iter()) {
+                let z = (r - g[0]) * inv_sigma;
+                let t = -0.5 * z * z;
+                *a += if t > -floor { t } else { -floor };
+                *k += 1.0;
+            }
+            return;
+        }
+        for ((a, k), g) in acc.iter_mut().zip(terms.iter_mut()).zip(gathered.iter()) {
+            let z = (r - g[0]) * inv_sigma;
+            let t = -0.5 * z * z;
+            let t = if t > -floor { t } else { -floor };
+            *a += t - g[1];
+            *k += if g[1] < 0.0 { 0.0 } else { 1.0 };
+        }
+    }
+
+    /// (mean RSS, miss term) at antenna-frame `(x, y)`.
+    #[inline]
+    #[must_use]
+    pub(crate) fn at(&self, x: f64, y: f64) -> (f64, f64) {
+        #[allow(clippy::cast_possible_truncation)]
+        let i = Self::index(x as f32, y as f32) as usize;
+        let [m, v] = self.cells.get(i).copied().unwrap_or([0.0, 0.0]);
+        (f64::from(m), f64::from(v))
+    }
+
+    /// The miss term of an in-view tag of mean RSS `m` (linear between tabulated values).
+    #[inline]
+    #[must_use]
+    pub(crate) fn miss_of_mean(&self, m: f64) -> f64 {
+        let f = (m / MISS_STEP).max(0.0);
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let i = f as usize;
+        #[allow(clippy::cast_precision_loss)]
+        let a = f - i as f64;
+        match (self.miss.get(i), self.miss.get(i + 1)) {
+            (Some(v0), Some(v1)) => v0 + a * (v1 - v0),
+            _ => self.miss.last().copied().unwrap_or(0.0),
+        }
+    }
+
+    /// True when the table was built for this model and floor.
+    #[must_use]
+    pub(crate) fn is_for(&self, model: &ReadModel, floor: f64) -> bool {
+        self.floor == floor && &self.model == model
+    }
+}
+
+/// Tag positions bucketed for the field's tile computations.
+#[derive(Debug, Clone)]
+struct Buckets {
+    x0: f64,
+    y0: f64,
+    cell: f64,
+    nx: usize,
+    ny: usize,
+    /// Tag positions per bucket, row-major.
+    tags: Vec<Vec<(f64, f64)>>,
+}
+
+/// Sum and count of the miss terms of all mapped tags in view, by antenna pose (see the module
+/// documentation).
+pub(crate) struct MissField {
+    table: ReadTable,
+    buckets: Buckets,
+    /// Position of node (0, 0), metres.
+    x0: f64,
+    y0: f64,
+    /// Tiles along x and y.
+    tx: usize,
+    ty: usize,
+    tiles: Vec<OnceLock<Box<[[f32; 2]]>>>,
+    cos: [f64; FIELD_HEADINGS],
+    sin: [f64; FIELD_HEADINGS],
+}
+
+impl std::fmt::Debug for MissField {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MissField")
+            .field("tiles", &(self.tx, self.ty))
+            .field("computed", &self.computed_tiles())
+            .finish_non_exhaustive()
+    }
+}
+
+impl MissField {
+    /// A field over `tags` (positions) under `table`; nothing is computed yet.
+    #[must_use]
+    pub(crate) fn new(table: ReadTable, tags: &[(f64, f64)]) -> Self {
+        let reach = table.reach.max(FIELD_STEP);
+        let (mut lo_x, mut lo_y, mut hi_x, mut hi_y) = (
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for (x, y) in tags.iter().filter(|(x, y)| x.is_finite() && y.is_finite()) {
+            lo_x = lo_x.min(*x);
+            lo_y = lo_y.min(*y);
+            hi_x = hi_x.max(*x);
+            hi_y = hi_y.max(*y);
+        }
+        if lo_x > hi_x {
+            (lo_x, lo_y, hi_x, hi_y) = (0.0, 0.0, 0.0, 0.0);
+        }
+        // Every pose from which a tag can be in view lies within the reach of the tags' box.
+        let margin = reach + FIELD_STEP;
+        let (x0, y0) = (lo_x - margin, lo_y - margin);
+        let span = TILE as f64 * FIELD_STEP;
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let tiles_for = |extent: f64| ((extent / span).ceil().clamp(1.0, 1e5)) as usize;
+        let tx = tiles_for(hi_x + margin - x0);
+        let ty = tiles_for(hi_y + margin - y0);
+        // Buckets of one tile's size.
+        let mut buckets = Buckets {
+            x0,
+            y0,
+            cell: span,
+            nx: tx,
+            ny: ty,
+            tags: vec![Vec::new(); tx * ty],
+        };
+        for &(x, y) in tags {
+            if let Some(b) = buckets.bucket_of(x, y) {
+                if let Some(v) = buckets.tags.get_mut(b) {
+                    v.push((x, y));
+                }
+            }
+        }
+        let mut cos = [0.0; FIELD_HEADINGS];
+        let mut sin = [0.0; FIELD_HEADINGS];
+        for (k, (c, s)) in cos.iter_mut().zip(sin.iter_mut()).enumerate() {
+            #[allow(clippy::cast_precision_loss)]
+            let th = k as f64 * TAU / FIELD_HEADINGS as f64;
+            (*s, *c) = th.sin_cos();
+        }
+        Self {
+            table,
+            buckets,
+            x0,
+            y0,
+            tx,
+            ty,
+            tiles: (0..tx * ty).map(|_| OnceLock::new()).collect(),
+            cos,
+            sin,
+        }
+    }
+
+    /// The table the field was built with.
+    pub(crate) fn table(&self) -> &ReadTable {
+        &self.table
+    }
+
+    /// Number of tiles computed so far.
+    #[must_use]
+    pub(crate) fn computed_tiles(&self) -> usize {
+        self.tiles.iter().filter(|t| t.get().is_some()).count()
+    }
+
+    /// Number of tiles.
+    #[must_use]
+    pub(crate) fn tile_count(&self) -> usize {
+        self.tiles.len()
+    }
+
+    /// Computes every tile now (instead of on first use).
+    pub(crate) fn compute_all(&self) {
+        for t in 0..self.tiles.len() {
+            let _ = self.tile(t);
+        }
+    }
+
+    fn tile(&self, t: usize) -> Option<&[[f32; 2]]> {
+        let cell = self.tiles.get(t)?;
+        Some(cell.get_or_init(|| self.compute_tile(t)))
+    }
+
+    /// All nodes of tile `t`: `[(ly · TILE_NODES + lx) · FIELD_HEADINGS + k]` = (sum, count).
+    fn compute_tile(&self, t: usize) -> Box<[[f32; 2]]> {
+        let (tx, ty) = (t % self.tx.max(1), t / self.tx.max(1));
+        let span = TILE as f64 * FIELD_STEP;
+        #[allow(clippy::cast_precision_loss)]
+        let (bx, by) = (self.x0 + tx as f64 * span, self.y0 + ty as f64 * span);
+        let reach = self.table.reach;
+        // Tags within reach of the tile.
+        let mut near: Vec<(f64, f64)> = Vec::new();
+        self.buckets.for_each_within(
+            (bx - reach, by - reach),
+            (bx + span + reach, by + span + reach),
+            |p| near.push(p),
+        );
+        let mut out = vec![[0.0_f32; 2]; TILE_NODES * TILE_NODES * FIELD_HEADINGS];
+        let mut acc = [(0.0_f64, 0.0_f64); FIELD_HEADINGS];
+        for ly in 0..TILE_NODES {
+            for lx in 0..TILE_NODES {
+                #[allow(clippy::cast_precision_loss)]
+                let (nx, ny) = (bx + lx as f64 * FIELD_STEP, by + ly as f64 * FIELD_STEP);
+                acc.iter_mut().for_each(|a| *a = (0.0, 0.0));
+                for &(x, y) in &near {
+                    let (dx, dy) = (x - nx, y - ny);
+                    let d2 = dx * dx + dy * dy;
+                    if d2 > reach * reach {
+                        continue;
+                    }
+                    let d = d2.sqrt();
+                    let on_axis = self.table.model.mean_rss(d, 0.0);
+                    let (cf, sf) = if d > 0.0 {
+                        (dx / d, dy / d)
+                    } else {
+                        (1.0, 0.0)
+                    };
+                    for ((a, c), s) in acc.iter_mut().zip(&self.cos).zip(&self.sin) {
+                        // Cosine of the tag's bearing from the boresight.
+                        let cb = cf * c + sf * s;
+                        if cb >= 0.0 {
+                            a.0 += self.table.miss_of_mean(on_axis * cb);
+                            a.1 += 1.0;
+                        }
+                    }
+                }
+                let base = (ly * TILE_NODES + lx) * FIELD_HEADINGS;
+                if let Some(slots) = out.get_mut(base..base + FIELD_HEADINGS) {
+                    for (slot, a) in slots.iter_mut().zip(&acc) {
+                        #[allow(clippy::cast_possible_truncation)]
+                        {
+                            *slot = [a.0 as f32, a.1 as f32];
+                        }
+                    }
+                }
+            }
+        }
+        out.into_boxed_slice()
+    }
+
+    /// (sum of miss terms, number of tags in view) at antenna pose `(x, y, θ)`, interpolated.
+    #[must_use]
+    pub(crate) fn sample(&self, x: f64, y: f64, theta: f64) -> (f32, f32) {
+        let fx = (x - self.x0) * (1.0 / FIELD_STEP);
+        let fy = (y - self.y0) * (1.0 / FIELD_STEP);
+        #[allow(clippy::cast_precision_loss)]
+        let (lim_x, lim_y) = ((self.tx * TILE) as f64, (self.ty * TILE) as f64);
+        if !(fx >= 0.0 && fy >= 0.0 && fx < lim_x && fy < lim_y && theta.abs() < 1e9) {
+            return (0.0, 0.0);
+        }
+        // Lower lattice node and weight along each axis (headings wrap).
+        let (gx, ax) = lower_node(fx);
+        let (gy, ay) = lower_node(fy);
+        #[allow(clippy::cast_precision_loss)]
+        let (k0, at) = lower_node(theta * (FIELD_HEADINGS as f64 / TAU));
+        let (k0, k1) = (k0 % FIELD_HEADINGS, (k0 + 1) % FIELD_HEADINGS);
+        let (tx, lx, ty, ly) = (gx / TILE, gx % TILE, gy / TILE, gy % TILE);
+        let Some(tile) = self.tile(ty * self.tx + tx) else {
+            return (0.0, 0.0);
+        };
+        let n00 = (ly * TILE_NODES + lx) * FIELD_HEADINGS;
+        let (n10, n01) = (n00 + FIELD_HEADINGS, n00 + TILE_NODES * FIELD_HEADINGS);
+        let n11 = n01 + FIELD_HEADINGS;
+        let Some(last) = tile.get(n11 + FIELD_HEADINGS - 1) else {
+            return (0.0, 0.0);
+        };
+        let _ = last;
+        let get = |i: usize| tile.get(i).copied().unwrap_or([0.0, 0.0]);
+        let lerp =
+            |a: [f32; 2], b: [f32; 2], t: f32| [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+        let corner = |n: usize| lerp(get(n + k0), get(n + k1), at);
+        let v = lerp(
+            lerp(corner(n00), corner(n10), ax),
+            lerp(corner(n01), corner(n11), ax),
+            ay,
+        );
+        (v[0], v[1])
+    }
+
+    /// Exact (uninterpolated) sum and count at an antenna pose, by direct summation (tests).
+    #[cfg(test)]
+    #[must_use]
+    pub(crate) fn exact(&self, antenna: &rfloc_pose::Pose2) -> (f64, f64) {
+        let reach = self.table.reach;
+        let (mut sum, mut count) = (0.0, 0.0);
+        self.buckets.for_each_within(
+            (antenna.x - reach, antenna.y - reach),
+            (antenna.x + reach, antenna.y + reach),
+            |(x, y)| {
+                let (s, c) = antenna.theta.sin_cos();
+                let (dx, dy) = (x - antenna.x, y - antenna.y);
+                let ax = c * dx + s * dy;
+                if ax >= 0.0 && dx.hypot(dy) <= reach {
+                    sum += miss_term(
+                        &self.table.model,
+                        self.table.floor,
+                        self.table.model.mean_rss(ax, -s * dx + c * dy),
+                    );
+                    count += 1.0;
+                }
+            },
+        );
+        (sum, count)
+    }
+}
+
+impl Buckets {
+    fn bucket_of(&self, x: f64, y: f64) -> Option<usize> {
+        let fx = ((x - self.x0) / self.cell).floor();
+        let fy = ((y - self.y0) / self.cell).floor();
+        #[allow(clippy::cast_precision_loss)]
+        let ok = fx >= 0.0 && fy >= 0.0 && fx < self.nx as f64 && fy < self.ny as f64;
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        ok.then(|| fy as usize * self.nx + fx as usize)
+    }
+
+    /// Calls `f` with every tag whose bucket overlaps the box `lo`–`hi`.
+    fn for_each_within(&self, lo: (f64, f64), hi: (f64, f64), mut f: impl FnMut((f64, f64))) {
+        #[allow(clippy::cast_precision_loss)]
+        let clamp_x = |v: f64| {
+            ((v - self.x0) / self.cell)
+                .floor()
+                .clamp(0.0, self.nx as f64 - 1.0)
+        };
+        #[allow(clippy::cast_precision_loss)]
+        let clamp_y = |v: f64| {
+            ((v - self.y0) / self.cell)
+                .floor()
+                .clamp(0.0, self.ny as f64 - 1.0)
+        };
+        if self.nx == 0 || self.ny == 0 {
+            return;
+        }
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let (x_lo, x_hi, y_lo, y_hi) = (
+            clamp_x(lo.0) as usize,
+            clamp_x(hi.0) as usize,
+            clamp_y(lo.1) as usize,
+            clamp_y(hi.1) as usize,
+        );
+        for by in y_lo..=y_hi {
+            for bx in x_lo..=x_hi {
+                if let Some(v) = self.tags.get(by * self.nx + bx) {
+                    v.iter().copied().for_each(&mut f);
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sincos_matches_the_library() {
+        let mut worst = 0.0_f64;
+        for i in -2000..=2000 {
+            let th = f64::from(i) * 0.0137;
+            let (s, c) = sincos_f32(th);
+            worst = worst
+                .max((f64::from(s) - th.sin()).abs())
+                .max((f64::from(c) - th.cos()).abs());
+        }
+        assert!(worst < 1e-6, "{worst}");
+    }
+
+    #[test]
+    fn table_agrees_with_the_model() {
+        let model = ReadModel::seed000(1000.0, 2);
+        let t = ReadTable::new(&model, 6.0);
+        let reach = model.reach();
+        for &(x, y) in &[
+            (0.3, 0.1),
+            (1.0, -0.5),
+            (0.05, 0.0),
+            (1.5, 0.4),
+            (0.7, -0.9),
+        ] {
+            let (m, v) = t.at(x, y);
+            let exact = model.mean_rss(x, y);
+            // Nearest 1 cm cell: the mean RSS is within the model's change over half a cell.
+            let grad = (model.mean_rss(x + 0.005, y) - exact)
+                .abs()
+                .max((model.mean_rss(x, y + 0.005) - exact).abs());
+            assert!(
+                (m - exact).abs() <= 2.0 * grad + 1.0,
+                "{x} {y}: {m} vs {exact}"
+            );
+            if x.hypot(y) < reach - 0.02 {
+                assert!(v < 0.0);
+            }
+        }
+        // Behind the antenna, beyond the reach and off the table: out of view.
+        assert_eq!(t.at(-0.5, 0.0).1, 0.0);
+        assert_eq!(t.at(0.0, 2.0).1, 0.0);
+        assert_eq!(t.at(9.0, 0.0), (0.0, 0.0));
+        assert_eq!(t.at(0.3, -9.0), (0.0, 0.0));
+        assert!((t.miss_of_mean(3000.0) - miss_term(&model, 6.0, 3000.0)).abs() < 1e-6);
+    }
+
+    /// The interpolated field against direct summation at random antenna poses: it is a
+    /// smoothed version (each tag's miss term drops from 0 to the floor within a few
+    /// centimetres at the edge of the view), close on average and never far off.
+    #[test]
+    fn field_interpolates_the_exact_sum() {
+        use rand::{Rng, SeedableRng};
+        let model = ReadModel::seed000(1000.0, 2);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let tags: Vec<(f64, f64)> = (0..800)
+            .map(|_| (5.0 * rng.random::<f64>(), 5.0 * rng.random::<f64>()))
+            .collect();
+        let field = MissField::new(ReadTable::new(&model, 6.0), &tags);
+        let (mut err, mut scale, mut worst) = (0.0, 0.0, 0.0_f64);
+        let n = 400;
+        for _ in 0..n {
+            let a = rfloc_pose::Pose2::new(
+                5.0 * rng.random::<f64>(),
+                5.0 * rng.random::<f64>(),
+                20.0 * rng.random::<f64>() - 10.0,
+            );
+            let (sum, count) = field.sample(a.x, a.y, a.theta);
+            let (exact_sum, exact_count) = field.exact(&a);
+            err += (f64::from(sum) - exact_sum).abs();
+            scale += exact_sum.abs();
+            worst = worst.max((f64::from(count) - exact_count).abs());
+        }
+        assert!(err / scale < 0.03, "relative error {}", err / scale);
+        assert!(worst < 8.0, "count off by {worst}");
+        // Outside the tags' box (beyond the reach) nothing is in view.
+        assert_eq!(field.sample(-5.0, -5.0, 0.0), (0.0, 0.0));
+        assert!(field.computed_tiles() < field.tile_count());
+        field.compute_all();
+        assert_eq!(field.computed_tiles(), field.tile_count());
+    }
+
+    #[test]
+    fn lower_node_and_rounding() {
+        assert_eq!(lower_node(3.25), (3, 0.25));
+        assert_eq!(lower_node(0.0).1, 0.0_f32.max(lower_node(0.0).1));
+        let (k, w) = lower_node(-0.25);
+        assert_eq!(k % 64, 63);
+        assert!((w - 0.75).abs() < 1e-6);
+        for x in [-3.7, -0.5, 0.0, 0.49, 2.5, 1e6 + 0.3] {
+            assert_eq!(round_f64(x), x.round_ties_even(), "{x}");
+            assert_eq!(floor_f64(x), x.floor(), "{x}");
+        }
+    }
+}
