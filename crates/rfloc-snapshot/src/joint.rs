@@ -83,6 +83,10 @@ pub struct JointConfig {
     pub relock_after: usize,
     /// The learned frame is the one in which the first this many poses lie on their odometry.
     pub anchor_steps: usize,
+    /// The odometry is assumed to drift by at most this plus this fraction of the distance
+    /// driven (m, 1); a trajectory further away has diverged.
+    pub max_drift_m: f64,
+    pub max_drift_rel: f64,
     /// Mahalanobis distance beyond which a factor is rejected (it disagrees with the pose
     /// predicted from the odometry by more than their uncertainties allow).
     pub gate: f64,
@@ -114,6 +118,8 @@ impl Default for JointConfig {
             gate: 4.0,
             anchor_steps: 50,
             relock_after: 25,
+            max_drift_m: 1.0,
+            max_drift_rel: 0.02,
         }
     }
 }
@@ -134,6 +140,9 @@ pub struct JointReport {
     pub rejected: usize,
     /// Times the forward filter took a factor after `relock_after` rejections in a row.
     pub relocks: usize,
+    /// The trajectory left the odometry by more than `max_drift_m + max_drift_rel · distance`:
+    /// the result is the odometry and the map along it.
+    pub diverged: bool,
     /// Mean change of the poses in the last round, m.
     pub last_round_change_m: f64,
 }
@@ -288,6 +297,28 @@ pub fn learn_jointly(
             let (x, y) = frame.transform_point(t.x, t.y);
             t.x = x;
             t.y = y;
+        }
+    }
+    // A trajectory that left its odometry by more than the odometry can drift (a constant
+    // plus a fraction of the distance driven) has diverged: keep the odometry and the map
+    // along it instead.
+    let mut driven = 0.0;
+    let mut diverged = false;
+    for (i, (p, o)) in poses.iter().zip(&odometry).enumerate() {
+        if let Some(u) = i.checked_sub(1).and_then(|k| increments.get(k)) {
+            driven += u.x.hypot(u.y);
+        }
+        if p.distance(o) > joint.max_drift_m + joint.max_drift_rel * driven || !p.is_finite() {
+            diverged = true;
+            break;
+        }
+    }
+    if diverged {
+        report.diverged = true;
+        poses.clone_from(&odometry);
+        let index = mapper.index(&poses);
+        for (k, slot) in located.iter_mut().enumerate() {
+            *slot = mapper.locate_tag(k, &index, None);
         }
     }
     let corrections: Vec<f64> = poses

@@ -17,9 +17,11 @@
 //!    next [`STALL_TURN_STEPS`] actions are rotations ([`reflex`]).
 //! 2. **Learning**: the seed's cluster database (`SnapshotDatabase::learn`, k-medoids, k = n/2,
 //!    true poses) is saved, with the survey and the tag map, as one learned-state set (`state-manifest.json`, versioned files) and loaded back; the same with
-//!    odometry poses gives `snapshot-db-odometry.json`. Both are scored as comparisons. The robot
-//!    itself uses the **fine map** (`FingerprintMap`: every exploration snapshot at its odometry
-//!    pose), the **learned motion** of each action (`ActionModel`: mean odometry increment of the
+//!    odometry poses gives `snapshot-db-odometry.json`. Both are scored as comparisons (on at
+//!    most [`CLUSTER_DB_MAX_STEPS`] steps). The robot itself learns the **tag map and its
+//!    exploration trajectory together** (`learn_jointly`: the odometry drifts, and a map placed
+//!    along it blurs with the explored area) and uses the **fine map** (`FingerprintMap`: every
+//!    exploration snapshot at its learned pose), the **learned motion** of each action (`ActionModel`: mean odometry increment of the
 //!    steps that did not stall) and a **lattice plan** (`LatticePlan`: value iteration on a
 //!    0.15 m × 11.25° lattice over the explored floor; steps near its edge or near stall places
 //!    cost more) to the goal point.
@@ -854,6 +856,11 @@ pub async fn run_trial(
         joint_report.last_round_change_m,
     );
     rec.metric("joint_learning_s", joint_s);
+    rec.metric("joint_relocks", joint_report.relocks as f64);
+    rec.metric(
+        "joint_diverged",
+        if joint_report.diverged { 1.0 } else { 0.0 },
+    );
     rec.metric("cluster_database_steps", cluster_steps as f64);
     rec.metric("states", db.states.len() as f64);
     rec.metric("fingerprints", fingerprints.len() as f64);
