@@ -34,6 +34,30 @@ fn odometry(truth: &[Pose2], seed: u64, heading_sigma: f64) -> Vec<Pose2> {
     out
 }
 
+/// The map learned along `samples`' poses and the one learned jointly with the path, with the
+/// same reader model (σ 150 per read, no dropout): (along, joint, joint poses, report).
+fn learn_both(
+    samples: &[(&rfloc_snapshot::Snapshot, Pose2)],
+) -> (TagMap, TagMap, Vec<Pose2>, rfloc_snapshot::JointReport) {
+    let model = ReadModel {
+        read_sigma: 150.0,
+        dropout: 0.0,
+        ..ReadModel::seed000(1000.0, 1)
+    };
+    let plain = TagMap::learn(
+        samples.iter().copied(),
+        model.clone(),
+        TagMapConfig::default(),
+    );
+    let (joint, poses, report) = learn_jointly(
+        samples,
+        model,
+        TagMapConfig::default(),
+        &JointConfig::default(),
+    );
+    (plain, joint, poses, report)
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -84,22 +108,7 @@ fn joint_learning_keeps_the_map_consistent_on_a_drifting_path() {
         .map(|o| &o.snapshot)
         .zip(odo.iter().copied())
         .collect();
-    let model = ReadModel {
-        read_sigma: 150.0,
-        dropout: 0.0,
-        ..ReadModel::seed000(1000.0, 1)
-    };
-    let plain = TagMap::learn(
-        samples.iter().copied(),
-        model.clone(),
-        TagMapConfig::default(),
-    );
-    let (joint, poses, report) = learn_jointly(
-        &samples,
-        model,
-        TagMapConfig::default(),
-        &JointConfig::default(),
-    );
+    let (plain, joint, poses, report) = learn_both(&samples);
     let (plain_tags, joint_tags) = (tag_error(&plain, &world), tag_error(&joint, &world));
     let (late_odo, late_joint) = (late_error(&odo, &truth), late_error(&poses, &truth));
     println!(
@@ -133,22 +142,7 @@ fn joint_learning_keeps_an_exact_odometry() {
         .map(|o| &o.snapshot)
         .zip(truth.iter().copied())
         .collect();
-    let model = ReadModel {
-        read_sigma: 150.0,
-        dropout: 0.0,
-        ..ReadModel::seed000(1000.0, 1)
-    };
-    let plain = TagMap::learn(
-        samples.iter().copied(),
-        model.clone(),
-        TagMapConfig::default(),
-    );
-    let (joint, poses, report) = learn_jointly(
-        &samples,
-        model,
-        TagMapConfig::default(),
-        &JointConfig::default(),
-    );
+    let (plain, joint, poses, report) = learn_both(&samples);
     let pose_error = median(
         poses
             .iter()

@@ -59,16 +59,20 @@ mod tests {
     use super::*;
     use rfloc_pose::Pose2;
 
-    #[test]
-    fn odometry_variance_grows_with_travel() {
-        let mut p = OdometryPipeline::default();
-        let ev = |x: f64| DeviceEvent::Odometry {
+    /// The base's odometry at time `x`, having driven `x` metres along x.
+    fn ev(x: f64) -> DeviceEvent {
+        DeviceEvent::Odometry {
             device: "base".into(),
             t: x,
             pose: Pose2::new(x, 0.0, 0.0),
             v: 0.0,
             w: 0.0,
-        };
+        }
+    }
+
+    #[test]
+    fn odometry_variance_grows_with_travel() {
+        let mut p = OdometryPipeline::default();
         let a = p.handle(&ev(0.0)).unwrap();
         let b = p.handle(&ev(10.0)).unwrap();
         assert!(b.covariance[(0, 0)] > a.covariance[(0, 0)]);
@@ -82,13 +86,6 @@ mod tests {
     #[test]
     fn init_position_places_the_odometry_frame() {
         let mut p = OdometryPipeline::default();
-        let ev = |x: f64| DeviceEvent::Odometry {
-            device: "base".into(),
-            t: x,
-            pose: Pose2::new(x, 0.0, 0.0),
-            v: 0.0,
-            w: 0.0,
-        };
         p.handle(&ev(1.0));
         assert_eq!(
             p.init_position(Pose2::new(5.0, 5.0, std::f64::consts::FRAC_PI_2)),

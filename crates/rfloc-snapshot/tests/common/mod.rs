@@ -43,21 +43,7 @@ pub fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
 impl World {
     /// 5 m × 5 m, 800 tags, threshold 1000 (the seed's simulation).
     pub fn seed_world(seed: u64, rss_noise: f64) -> Self {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let size = 5.0;
-        let tags: Vec<(f64, f64)> = (0..800)
-            .map(|_| (rng.random::<f64>() * size, rng.random::<f64>() * size))
-            .collect();
-        let ids = (0..tags.len())
-            .map(|i| TagId::new(format!("E2009033{i:08X}").into_bytes()))
-            .collect();
-        Self {
-            size,
-            tags,
-            ids,
-            threshold: 1000.0,
-            rss_noise,
-        }
+        Self::square(seed, 5.0, 32.0, rss_noise)
     }
 
     /// A square of `size` metres with `per_m2` random tags per square metre (the seed's
