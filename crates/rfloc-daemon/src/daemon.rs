@@ -330,11 +330,12 @@ pub async fn run_with_pipeline(
         }
     }
     drop(router);
-    let join = tokio::task::spawn_blocking(move || thread.handle.join());
-    match tokio::time::timeout(Duration::from_secs(5), join).await {
-        Ok(Ok(Ok(()))) => {}
-        Ok(_) => tracing::error!("the estimator thread ended abnormally"),
-        Err(_) => tracing::error!("the estimator thread did not stop within 5 s"),
+    match estimator::join_within(thread.handle, Duration::from_secs(5)).await {
+        estimator::ThreadEnd::Stopped => {}
+        estimator::ThreadEnd::Panicked => tracing::error!("the estimator thread ended abnormally"),
+        estimator::ThreadEnd::LeftRunning => {
+            tracing::error!("the estimator thread did not stop within 5 s; leaving it behind");
+        }
     }
     if let Some(task) = fleet_task {
         if tokio::time::timeout(Duration::from_secs(5), task)

@@ -93,6 +93,35 @@ pub struct EstimatorThread {
     pub handle: JoinHandle<()>,
 }
 
+/// How an estimator thread ended when asked to stop.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ThreadEnd {
+    /// It returned.
+    Stopped,
+    /// It panicked.
+    Panicked,
+    /// It was still running at the deadline and was left behind (a hung estimator must not
+    /// hold the process: nothing waits for it, not even the runtime's shutdown).
+    LeftRunning,
+}
+
+/// Waits up to `limit` for `handle`'s thread to end, without blocking a runtime thread.
+pub async fn join_within(handle: JoinHandle<()>, limit: std::time::Duration) -> ThreadEnd {
+    let deadline = tokio::time::Instant::now() + limit;
+    while !handle.is_finished() {
+        if tokio::time::Instant::now() >= deadline {
+            return ThreadEnd::LeftRunning;
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+    }
+    // Finished: joining returns at once.
+    if handle.join().is_ok() {
+        ThreadEnd::Stopped
+    } else {
+        ThreadEnd::Panicked
+    }
+}
+
 /// The header line of an order log.
 pub const ORDER_LOG_HEADER: &str = "# rfloc pipeline inputs 1";
 
