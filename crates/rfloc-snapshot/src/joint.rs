@@ -90,6 +90,10 @@ pub struct JointConfig {
     /// Mahalanobis distance beyond which a factor is rejected (it disagrees with the pose
     /// predicted from the odometry by more than their uncertainties allow).
     pub gate: f64,
+    /// In the forward pass, a tag places a pose only when it was first read at least this
+    /// many steps before (a place seen again): tags first seen on the same stretch of driving
+    /// were placed from the poses the factor would correct, and only add their bias.
+    pub revisit_steps: usize,
 }
 
 impl Default for JointConfig {
@@ -120,6 +124,7 @@ impl Default for JointConfig {
             relock_after: 25,
             max_drift_m: 1.0,
             max_drift_rel: 0.02,
+            revisit_steps: 30,
         }
     }
 }
@@ -197,14 +202,20 @@ pub fn learn_jointly(
 
     // Forward pass: a Kalman filter on the pose (odometry prediction, map factor update,
     // gated), the map of everything placed before the chunk; then the chunk's tags placed.
+    let first_read: Vec<usize> = (0..mapper.tag_count())
+        .map(|k| mapper.reads_of(k).first().map_or(usize::MAX, |(i, _)| *i))
+        .collect();
     let mut cov = Matrix3::<f64>::zeros();
     let mut start = 0;
     while start < n {
         let end = (start + chunk).min(n);
+        let seen_before = start.saturating_sub(joint.revisit_steps);
         let map = mapper.build_from(
             located
                 .iter()
-                .flatten()
+                .zip(&first_read)
+                .filter(|(_, first)| joint.revisit_steps == 0 || **first < seen_before)
+                .filter_map(|(t, _)| t.as_ref())
                 .filter(|t| t.sigma <= joint.max_tag_sigma && t.reads >= joint.min_tag_reads)
                 .cloned(),
         );

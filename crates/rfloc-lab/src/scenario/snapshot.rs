@@ -266,6 +266,51 @@ fn read_model(scenario: &Scenario) -> ReadModel {
     }
 }
 
+/// One exploration step in `exploration.csv`: where the robot was, what its odometry said and
+/// where the joint learning of map and trajectory placed it.
+#[derive(serde::Serialize)]
+struct ExplorationRow {
+    step: usize,
+    x: f64,
+    y: f64,
+    theta: f64,
+    odom_x: f64,
+    odom_y: f64,
+    odom_theta: f64,
+    learned_x: f64,
+    learned_y: f64,
+    learned_theta: f64,
+}
+
+/// Writes the exploration's true, odometry and learned poses, one row per step.
+fn write_exploration(
+    path: &Path,
+    rows: impl Iterator<Item = (Pose2, Pose2, Pose2)>,
+) -> anyhow::Result<()> {
+    let mut w = csv::WriterBuilder::new()
+        .terminator(csv::Terminator::Any(b'\n'))
+        .from_path(path)
+        .with_context(|| format!("writing {}", path.display()))?;
+    for (step, (t, o, l)) in rows.enumerate() {
+        w.serialize(ExplorationRow {
+            step,
+            x: t.x,
+            y: t.y,
+            theta: t.theta,
+            odom_x: o.x,
+            odom_y: o.y,
+            odom_theta: o.theta,
+            learned_x: l.x,
+            learned_y: l.y,
+            learned_theta: l.theta,
+        })
+        .with_context(|| format!("writing {}", path.display()))?;
+    }
+    w.flush()
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
+
 /// Planar distance of two poses.
 fn dist(a: &Pose2, b: &Pose2) -> f64 {
     (a.x - b.x).hypot(a.y - b.y)
@@ -609,6 +654,14 @@ pub async fn run_trial(
     };
     let (smoothed_errors, odometry_errors) =
         (trajectory_errors(&smoothed), trajectory_errors(&odom_poses));
+    write_exploration(
+        &dir.join("exploration.csv"),
+        by_truth
+            .iter()
+            .zip(&odom_poses)
+            .zip(&smoothed)
+            .map(|((o, odo), learned)| (o.pose, *odo, *learned)),
+    )?;
     let tag_errors = errors_of(&tag_map);
     // The plan: the learned motion of each action (mean odometry increment of the surveyed
     // steps that did not stall) and the places where the wheels stalled, from the survey.
