@@ -210,7 +210,7 @@ pub struct TrackEstimate {
 }
 
 /// Particle filter over `(x, y, θ)` with odometry prediction and fingerprint updates.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct TrackFilter {
     config: TrackConfig,
     poses: Vec<Pose2>,
@@ -221,6 +221,23 @@ pub struct TrackFilter {
     /// Work buffers of the tag-map likelihood.
     scratch: LikelihoodScratch,
     scores: Vec<(f64, f64)>,
+}
+
+/// A clone has the same state; its work buffers start empty (they hold nothing between
+/// updates, and copying them would double what a clone copies).
+impl Clone for TrackFilter {
+    fn clone(&self) -> Self {
+        Self {
+            config: self.config,
+            poses: self.poses.clone(),
+            weights: self.weights.clone(),
+            initialised: self.initialised,
+            w_fast: self.w_fast,
+            w_slow: self.w_slow,
+            scratch: LikelihoodScratch::default(),
+            scores: Vec::new(),
+        }
+    }
 }
 
 /// One standard normal draw (ziggurat).
