@@ -104,14 +104,17 @@ pub(crate) fn sincos_f32(theta: f64) -> (f32, f32) {
     }
 }
 
-/// Antenna poses of many robot poses in single precision, relative to an origin, padded to a
+/// Antenna poses of many robot poses in single precision, pre-rotated and pre-scaled to table
+/// cells: a tag at `(tx, ty)` (relative to an origin) lies in antenna-frame cell
+/// `(c·tx + s·ty + u, c·ty − s·tx + v)` (before rounding; the `x` axis from the table's first
+/// column), with `c`, `s` the heading's cosine and sine divided by the cell size. Padded to a
 /// multiple of [`LANES`] (padding lies far away and scores nothing useful).
 #[derive(Debug, Clone, Default)]
 pub(crate) struct PoseLanes {
-    pub(crate) x: Vec<f32>,
-    pub(crate) y: Vec<f32>,
-    pub(crate) cos: Vec<f32>,
-    pub(crate) sin: Vec<f32>,
+    pub(crate) c: Vec<f32>,
+    pub(crate) s: Vec<f32>,
+    pub(crate) u: Vec<f32>,
+    pub(crate) v: Vec<f32>,
 }
 
 impl PoseLanes {
@@ -119,15 +122,39 @@ impl PoseLanes {
     pub(crate) fn reset(&mut self, n: usize) {
         let padded = n.div_ceil(LANES) * LANES;
         for (v, fill) in [
-            (&mut self.x, 1.0e7),
-            (&mut self.y, 1.0e7),
-            (&mut self.cos, 1.0),
-            (&mut self.sin, 0.0),
+            (&mut self.c, 0.0),
+            (&mut self.s, 0.0),
+            (&mut self.u, -1.0e7),
+            (&mut self.v, 1.0e7),
         ] {
             v.clear();
             v.resize(padded, fill);
         }
     }
+
+    /// The lanes of the antenna at `(x, y)` (relative to the origin) with heading cosine `cos`
+    /// and sine `sin`.
+    #[inline]
+    pub(crate) fn lane(x: f64, y: f64, cos: f32, sin: f32) -> [f32; 4] {
+        let inv = 1.0 / TABLE_STEP;
+        let (c, s) = (f64::from(cos) * inv, f64::from(sin) * inv);
+        #[allow(clippy::cast_possible_truncation)]
+        [
+            c as f32,
+            s as f32,
+            (-(c * x + s * y) - TABLE_X0 * inv) as f32,
+            (s * x - c * y) as f32,
+        ]
+    }
+}
+
+/// Scratch of [`ReadTable::add_reads`] for `n` poses (padded).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct ReadScratch {
+    cells: Vec<u32>,
+    gathered: Vec<[f32; 2]>,
+    /// Per pose: read tags the field counted as in view (their miss term was replaced).
+    in_view: Vec<u32>,
 }
 
 /// The reader model tabulated for one floor (see the module documentation).
@@ -217,77 +244,141 @@ impl ReadTable {
     }
 
     /// Index of the cell nearest to antenna-frame `(x, y)`, clamped to the zero border.
-    /// Branch-free and without float-to-integer conversions (which are branchy on the
-    /// baseline target): a value `0 ≤ v < 2²³` added to 2²³ holds `round(v)` in the low
-    /// mantissa bits, so loops over many poses vectorise.
     #[inline]
     #[must_use]
     fn index(x: f32, y: f32) -> u32 {
-        const TWO_23: f32 = 8_388_608.0;
         #[allow(clippy::cast_possible_truncation)]
         let inv = (1.0 / TABLE_STEP) as f32;
         #[allow(clippy::cast_possible_truncation)]
         let x0 = TABLE_X0 as f32;
-        #[allow(clippy::cast_precision_loss)]
-        let top = (TABLE_N - 1) as f32;
-        let fx = (x - x0) * inv;
-        let fx = if fx > 0.0 { fx } else { 0.0 };
-        let fx = if fx < top { fx } else { top };
-        let fy = y.abs() * inv;
-        let fy = if fy < top { fy } else { top };
-        let ix = (fx + TWO_23).to_bits() & 0x7F_FFFF;
-        let iy = (fy + TWO_23).to_bits() & 0x7F_FFFF;
-        ((iy << 8) | ix) & 0xFFFF
+        Self::cell((x - x0) * inv, y * inv) & 0xFFFF
     }
 
-    /// Adds one read tag's terms to every pose of `poses`: at tag position `(tx, ty)` (same
+    /// Index of the cell nearest to `(fx, fy)` in cell units (`fx` from the first column),
+    /// clamped to the zero border, in the low 16 bits (the high bits are not zero). Branch-free
+    /// and without float-to-integer conversions (which are branchy on the baseline target): a
+    /// value `0 ≤ v < 2²³` added to 2²³ holds `round(v)` in the low mantissa bits, so loops
+    /// over many poses vectorise.
+    #[inline]
+    #[must_use]
+    fn cell(fx: f32, fy: f32) -> u32 {
+        const TWO_23: f32 = 8_388_608.0;
+        #[allow(clippy::cast_precision_loss)]
+        let top = (TABLE_N - 1) as f32;
+        let fx = if fx > 0.0 { fx } else { 0.0 };
+        let fx = if fx < top { fx } else { top };
+        let fy = fy.abs();
+        let fy = if fy < top { fy } else { top };
+        // `iy`'s float bits shifted by 8 keep only `iy << 8` (the exponent leaves the word).
+        let ix = (fx + TWO_23).to_bits();
+        let iy = (fy + TWO_23).to_bits();
+        (iy << 8) | ix
+    }
+
+    /// Adds the read tags' terms to every pose of `poses`: for a tag at `(tx, ty)` (same
     /// origin as the poses) read with RSS `r`, `acc += max(−½((r − m)/σ)², −floor) − v` (its
     /// Gaussian term replaces the miss term `v` the field counted) and `terms += 1` unless the
     /// field counted it already (in view). With `reads_only`, nothing is subtracted and every
-    /// read tag is a term (no field was added). `cells` is scratch of the poses' length.
+    /// read tag is a term (no field was added). Two tags per pass over the poses.
     #[allow(clippy::too_many_arguments)]
-    pub(crate) fn add_read(
+    pub(crate) fn add_reads(
         &self,
-        (tx, ty, r): (f32, f32, f32),
+        tags: &[(f32, f32, f32)],
         inv_sigma: f32,
         floor: f32,
         reads_only: bool,
         poses: &PoseLanes,
-        cells: &mut [u32],
-        gathered: &mut [[f32; 2]],
+        scratch: &mut ReadScratch,
         acc: &mut [f32],
         terms: &mut [f32],
     ) {
-        // The tag in each antenna's frame, as a table cell (vectorised).
-        let frames = poses
-            .x
-            .iter()
-            .zip(&poses.y)
-            .zip(poses.cos.iter().zip(&poses.sin));
-        for (i, ((&x, &y), (&c, &s))) in cells.iter_mut().zip(frames) {
-            let (dx, dy) = (tx - x, ty - y);
-            *i = Self::index(c * dx + s * dy, c * dy - s * dx);
-        }
-        // Gather (scalar; the index is below the table's size by construction).
-        for (g, &i) in gathered.iter_mut().zip(cells.iter()) {
-            *g = self.cells[i as usize & (TABLE_N * TABLE_N - 1)];
-        }
-        // Terms (vectorised).
-        if reads_only {
-            for ((a, k), g) in acc.iter_mut().zip(terms.iter_mut()).zip(gathered.iter()) {
-                let z = (r - g[0]) * inv_sigma;
-                let t = -0.5 * z * z;
-                *a += if t > -floor { t } else { -floor };
-                *k += 1.0;
+        let n = poses.c.len();
+        let ReadScratch {
+            cells,
+            gathered,
+            in_view,
+        } = scratch;
+        cells.clear();
+        cells.resize(2 * n, 0);
+        gathered.clear();
+        gathered.resize(2 * n, [0.0; 2]);
+        in_view.clear();
+        in_view.resize(n, 0);
+        // `t = −½ z²` as `d² · k`.
+        let scale = -0.5 * inv_sigma * inv_sigma;
+        let lanes = || {
+            poses
+                .c
+                .iter()
+                .zip(&poses.s)
+                .zip(poses.u.iter().zip(&poses.v))
+        };
+        let term = |r: f32, g: [f32; 2]| {
+            let d = r - g[0];
+            let t = d * d * scale;
+            if t > -floor {
+                t
+            } else {
+                -floor
             }
-            return;
+        };
+        for pair in tags.chunks(2) {
+            let &[(ax, ay, ra), ..] = pair else { continue };
+            // A lone last tag is paired with a copy of itself whose terms are not added.
+            let (bx, by, rb) = pair.get(1).copied().unwrap_or((ax, ay, ra));
+            let two = pair.len() == 2;
+            // Both tags in each antenna's frame, as table cells (vectorised).
+            let (ca, cb) = cells.split_at_mut(n);
+            for ((ia, ib), ((&c, &s), (&u, &v))) in ca.iter_mut().zip(cb.iter_mut()).zip(lanes()) {
+                *ia = Self::cell(c * ax + s * ay + u, c * ay - s * ax + v);
+                *ib = Self::cell(c * bx + s * by + u, c * by - s * bx + v);
+            }
+            // Gather (scalar; the index is below the table's size by construction).
+            let m = if two { 2 * n } else { n };
+            for (g, &i) in gathered[..m].iter_mut().zip(&cells[..m]) {
+                *g = self.cells[i as usize & (TABLE_N * TABLE_N - 1)];
+            }
+            let (ga, gb) = gathered.split_at(n);
+            // Terms (vectorised).
+            let rows = acc
+                .iter_mut()
+                .zip(in_view.iter_mut())
+                .zip(ga.iter().zip(gb));
+            match (reads_only, two) {
+                (true, true) => {
+                    for ((a, _), (&g, &h)) in rows {
+                        *a += term(ra, g);
+                        *a += term(rb, h);
+                    }
+                }
+                (true, false) => {
+                    for ((a, _), (&g, _)) in rows {
+                        *a += term(ra, g);
+                    }
+                }
+                (false, true) => {
+                    for ((a, k), (&g, &h)) in rows {
+                        *a += term(ra, g) - g[1];
+                        *a += term(rb, h) - h[1];
+                        // The sign bit marks a tag in view.
+                        *k += (g[1].to_bits() >> 31) + (h[1].to_bits() >> 31);
+                    }
+                }
+                (false, false) => {
+                    for ((a, k), (&g, _)) in rows {
+                        *a += term(ra, g) - g[1];
+                        *k += g[1].to_bits() >> 31;
+                    }
+                }
+            }
         }
-        for ((a, k), g) in acc.iter_mut().zip(terms.iter_mut()).zip(gathered.iter()) {
-            let z = (r - g[0]) * inv_sigma;
-            let t = -0.5 * z * z;
-            let t = if t > -floor { t } else { -floor };
-            *a += t - g[1];
-            *k += if g[1] < 0.0 { 0.0 } else { 1.0 };
+        #[allow(clippy::cast_precision_loss)]
+        let read = tags.len() as f32;
+        for (k, &seen) in terms.iter_mut().zip(in_view.iter()) {
+            #[allow(clippy::cast_precision_loss)]
+            {
+                *k += read - seen as f32;
+            }
         }
     }
 

@@ -27,7 +27,7 @@ use std::sync::Arc;
 use rfloc_pose::{normal_cdf, Pose2};
 use serde::{Deserialize, Serialize};
 
-use crate::readtable::{sincos_f32, MissField, PoseLanes, ReadTable};
+use crate::readtable::{sincos_f32, MissField, PoseLanes, ReadScratch, ReadTable};
 use crate::snapshot::Snapshot;
 use crate::tag::TagId;
 
@@ -212,8 +212,7 @@ pub struct LikelihoodScratch {
     poses: PoseLanes,
     acc: Vec<f32>,
     terms: Vec<f32>,
-    cells: Vec<u32>,
-    gathered: Vec<[f32; 2]>,
+    reads: ReadScratch,
 }
 
 /// Learned tag positions, with the reader model tabulated for fast scoring.
@@ -483,8 +482,7 @@ impl TagMap {
             poses: lanes,
             acc,
             terms,
-            cells,
-            gathered,
+            reads,
         } = scratch;
         let (ox, oy) = poses.first().map_or((0.0, 0.0), |p| (p.x, p.y));
         let off = self.model.antenna_offset;
@@ -507,20 +505,17 @@ impl TagMap {
             lanes.reset(m);
             for v in [&mut *acc, &mut *terms] {
                 v.clear();
-                v.resize(lanes.x.len(), 0.0);
+                v.resize(lanes.c.len(), 0.0);
             }
-            cells.clear();
-            cells.resize(lanes.x.len(), 0);
-            gathered.clear();
-            gathered.resize(lanes.x.len(), [0.0; 2]);
-            // Antenna poses (relative to the first pose, in single precision) and the field.
+            // Antenna poses (relative to the first pose, in single precision, pre-rotated and
+            // scaled to table cells) and the field.
             let slots = lanes
-                .x
+                .c
                 .iter_mut()
-                .zip(lanes.y.iter_mut())
-                .zip(lanes.cos.iter_mut().zip(lanes.sin.iter_mut()))
+                .zip(lanes.s.iter_mut())
+                .zip(lanes.u.iter_mut().zip(lanes.v.iter_mut()))
                 .zip(acc.iter_mut().zip(terms.iter_mut()));
-            for (p, (((px, py), (pc, ps)), (a, k))) in block.iter().zip(slots) {
+            for (p, (((pc, ps), (pu, pv)), (a, k))) in block.iter().zip(slots) {
                 let (s, c) = sincos_f32(p.theta);
                 let ax = p.x + f64::from(c) * off;
                 let ay = p.y + f64::from(s) * off;
@@ -529,21 +524,13 @@ impl TagMap {
                 } else {
                     field.sample(ax, ay, p.theta)
                 };
-                #[allow(clippy::cast_possible_truncation)]
-                {
-                    *px = (ax - ox) as f32;
-                    *py = (ay - oy) as f32;
-                }
-                *pc = c;
-                *ps = s;
+                [*pc, *ps, *pu, *pv] = PoseLanes::lane(ax - ox, ay - oy, c, s);
                 *a = sum;
                 *k = count;
             }
-            for &tag in &tags {
-                table.add_read(
-                    tag, inv_sigma, floor, reads_only, lanes, cells, gathered, acc, terms,
-                );
-            }
+            table.add_reads(
+                &tags, inv_sigma, floor, reads_only, lanes, reads, acc, terms,
+            );
             out.extend(
                 acc.iter()
                     .zip(terms.iter())

@@ -210,7 +210,7 @@ pub struct TrackEstimate {
 }
 
 /// Particle filter over `(x, y, θ)` with odometry prediction and fingerprint updates.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct TrackFilter {
     config: TrackConfig,
     poses: Vec<Pose2>,
@@ -223,6 +223,23 @@ pub struct TrackFilter {
     scores: Vec<(f64, f64)>,
 }
 
+/// A clone has the same state; its work buffers start empty (they hold nothing between
+/// updates, and copying them would double what a clone copies).
+impl Clone for TrackFilter {
+    fn clone(&self) -> Self {
+        Self {
+            config: self.config,
+            poses: self.poses.clone(),
+            weights: self.weights.clone(),
+            initialised: self.initialised,
+            w_fast: self.w_fast,
+            w_slow: self.w_slow,
+            scratch: LikelihoodScratch::default(),
+            scores: Vec::new(),
+        }
+    }
+}
+
 /// One standard normal draw (ziggurat).
 fn normal<R: Rng + ?Sized>(rng: &mut R) -> f64 {
     rand_distr::Distribution::<f64>::sample(&rand_distr::StandardNormal, rng)
@@ -233,6 +250,75 @@ fn normal<R: Rng + ?Sized>(rng: &mut R) -> f64 {
 fn compose(p: &Pose2, dx: f64, dy: f64, dth: f64) -> Pose2 {
     let (s, c) = sincos(p.theta);
     Pose2::new(p.x + c * dx - s * dy, p.y + s * dx + c * dy, p.theta + dth)
+}
+
+/// `eˣ` without the library call, branch-free so that loops over particles vectorise: `x`
+/// reduced by `k·ln 2` to `|r| ≤ ½ ln 2`, `eʳ` by its Taylor polynomial to degree 13
+/// (truncation below 1e−17 relative), `2ᵏ` built from its bits. Relative error a few units in
+/// the last place (below 1e−15, see the test) for `−707 ≤ x ≤ 709.7`; below −707 it returns
+/// 0 (the library's value there is below 1e−307), above ∞, and NaN for NaN.
+#[inline]
+#[must_use]
+pub(crate) fn exp(x: f64) -> f64 {
+    const MAGIC: f64 = 6_755_399_441_055_744.0;
+    // ln 2 split (fdlibm's `ln2HI`, `ln2LO`): the high part has 32 significant bits.
+    const LN2_HI: f64 = f64::from_bits(0x3FE6_2E42_FEE0_0000);
+    const LN2_LO: f64 = f64::from_bits(0x3DEA_39EF_3579_3C76);
+    let xc = x.clamp(-707.0, 709.8);
+    // k = round(x / ln 2); 1.5·2⁵² + k holds k in its low mantissa bits.
+    let kb = xc * std::f64::consts::LOG2_E + MAGIC;
+    let k = kb - MAGIC;
+    // `k · LN2_HI` is exact (|k| ≤ 1024).
+    let r = (xc - k * LN2_HI) - k * LN2_LO;
+    let mut p = 1.0 / 6_227_020_800.0;
+    for c in [
+        1.0 / 479_001_600.0,
+        1.0 / 39_916_800.0,
+        1.0 / 3_628_800.0,
+        1.0 / 362_880.0,
+        1.0 / 40_320.0,
+        1.0 / 5_040.0,
+        1.0 / 720.0,
+        1.0 / 120.0,
+        1.0 / 24.0,
+        1.0 / 6.0,
+        0.5,
+        1.0,
+        1.0,
+    ] {
+        p = p * r + c;
+    }
+    // 2^(k − 1) (k ≥ −1020 here), times 2 after the product so that k = 1024 still works.
+    let bits = kb
+        .to_bits()
+        .wrapping_sub(MAGIC.to_bits())
+        .wrapping_add(1022)
+        << 52;
+    let y = p * f64::from_bits(bits) * 2.0;
+    let y = if x < -707.0 { 0.0 } else { y };
+    let y = if x > 709.8 { f64::INFINITY } else { y };
+    if x.is_nan() {
+        x
+    } else {
+        y
+    }
+}
+
+/// [`wrap_angle`] without the library's `fmod` for `|a| < 2π` (bit-identical there: `fmod`
+/// returns such an `a` unchanged, and `rem_euclid` then adds 2π to a negative one).
+#[inline]
+fn wrap_small(a: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    if a.abs() < TAU {
+        let r = if a < 0.0 { a + TAU } else { a };
+        if r > PI {
+            r - TAU
+        } else {
+            r
+        }
+    } else {
+        wrap_angle(a)
+    }
 }
 
 /// `sin θ`, `cos θ` by polynomials after reduction to `[−π/4, π/4]` (error below 1e−13;
@@ -463,10 +549,14 @@ impl TrackFilter {
             return;
         }
         // How well the cloud explains the snapshot: weighted per-term likelihood.
+        // Both exponentials first (a loop that vectorises), then the sums in order.
+        for (ll, terms) in &mut scores {
+            (*ll, *terms) = (exp(*ll / terms.max(1.0)), exp(*ll - best));
+        }
         let mut explained = 0.0;
-        for (w, (ll, terms)) in self.weights.iter_mut().zip(&scores) {
-            explained += *w * (ll / terms.max(1.0)).exp();
-            *w *= (ll - best).exp();
+        for (w, (per_term, relative)) in self.weights.iter_mut().zip(&scores) {
+            explained += *w * per_term;
+            *w *= relative;
         }
         self.scores = scores;
         self.finish_update(explained, rng);
@@ -528,8 +618,12 @@ impl TrackFilter {
         // Heaviest 0.3 m cell.
         const CELL: f64 = 0.3;
         let floor = crate::readtable::floor_f64;
-        let key = |p: &Pose2| (floor(p.x / CELL) as i64, floor(p.y / CELL) as i64);
-        let cells = CellWeights::new(self.poses.iter().map(key).zip(self.weights.iter().copied()));
+        let keys: Vec<(i64, i64)> = self
+            .poses
+            .iter()
+            .map(|p| (floor(p.x / CELL) as i64, floor(p.y / CELL) as i64))
+            .collect();
+        let cells = CellWeights::new(keys.iter().copied().zip(self.weights.iter().copied()));
         // The cell whose 3×3 neighbourhood is heaviest (a diffuse mode beats a tight speck);
         // ties go to the smallest cell.
         let best = cells
@@ -543,13 +637,15 @@ impl TrackFilter {
         // Three mean-shift steps; the heading and mass come from the last step's window.
         let mut window = None;
         for _ in 0..3 {
+            // Branch-free: a particle outside the window adds exact zeros (finite poses), so
+            // the sums are those of the particles inside, in the same order.
             let (mut sw, mut sx, mut sy) = (0.0, 0.0, 0.0);
-            for (p, w) in self.poses.iter().zip(&self.weights) {
-                if (p.x - cx).powi(2) + (p.y - cy).powi(2) <= r2 {
-                    sw += w;
-                    sx += w * p.x;
-                    sy += w * p.y;
-                }
+            for (p, &w) in self.poses.iter().zip(&self.weights) {
+                let inside = (p.x - cx).powi(2) + (p.y - cy).powi(2) <= r2;
+                let w = if inside { w } else { 0.0 };
+                sw += w;
+                sx += w * p.x;
+                sy += w * p.y;
             }
             if sw <= 0.0 {
                 break;
@@ -575,7 +671,7 @@ impl TrackFilter {
             let d2 = ex * ex + ey * ey;
             if d2 <= r2 {
                 var += w * d2;
-                let et = angle_diff(p.theta, theta);
+                let et = wrap_small(p.theta - theta);
                 xx += w * ex * ex;
                 xy += w * ex * ey;
                 xt += w * ex * et;
@@ -786,6 +882,47 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    #[test]
+    fn fast_exp_matches_the_library() {
+        let mut worst = 0.0_f64;
+        let mut x = -707.0;
+        while x < 709.7 {
+            for d in [0.0, 1e-9, 0.123_456_789, 0.5 * std::f64::consts::LN_2] {
+                let e = (x + d).exp();
+                worst = worst.max((exp(x + d) - e).abs() / e);
+            }
+            x += 0.0137;
+        }
+        assert!(worst < 1e-15, "{worst}");
+        for x in [0.0, -0.0, 1.0, -1.0, 1e-300, -1e-300, 709.78] {
+            assert!((exp(x) - x.exp()).abs() <= 1e-15 * x.exp(), "{x}");
+        }
+        assert_eq!(exp(-708.0), 0.0);
+        assert_eq!(exp(-1e9), 0.0);
+        assert_eq!(exp(710.0), f64::INFINITY);
+        assert_eq!(exp(f64::INFINITY), f64::INFINITY);
+        assert_eq!(exp(f64::NEG_INFINITY), 0.0);
+        assert!(exp(f64::NAN).is_nan());
+    }
+
+    #[test]
+    fn wrap_small_is_wrap_angle() {
+        for i in -5000..5000 {
+            let a = f64::from(i) * 0.002_71;
+            assert_eq!(wrap_small(a).to_bits(), wrap_angle(a).to_bits(), "{a}");
+        }
+        for a in [
+            0.0,
+            -0.0,
+            std::f64::consts::PI,
+            -std::f64::consts::PI,
+            1e3,
+            f64::NAN,
+        ] {
+            assert_eq!(wrap_small(a).to_bits(), wrap_angle(a).to_bits(), "{a}");
         }
     }
 
