@@ -94,6 +94,9 @@ pub struct JointConfig {
     /// many steps before (a place seen again): tags first seen on the same stretch of driving
     /// were placed from the poses the factor would correct, and only add their bias.
     pub revisit_steps: usize,
+    /// When the learning diverges, it is tried once more with this `revisit_steps` (the two
+    /// fail on different explorations) before falling back to the odometry.
+    pub retry_revisit_steps: usize,
 }
 
 impl Default for JointConfig {
@@ -124,7 +127,8 @@ impl Default for JointConfig {
             relock_after: 25,
             max_drift_m: 1.0,
             max_drift_rel: 0.02,
-            revisit_steps: 30,
+            revisit_steps: 0,
+            retry_revisit_steps: 30,
         }
     }
 }
@@ -150,6 +154,8 @@ pub struct JointReport {
     pub diverged: bool,
     /// Mean change of the poses in the last round, m.
     pub last_round_change_m: f64,
+    /// The first attempt diverged and this is the second, with `retry_revisit_steps`.
+    pub retried: bool,
 }
 
 /// A pose's Gaussian factor: mean and information.
@@ -164,6 +170,30 @@ struct Factor {
 /// is kept (it anchors the frame).
 #[must_use]
 pub fn learn_jointly(
+    samples: &[(&Snapshot, Pose2)],
+    model: ReadModel,
+    config: TagMapConfig,
+    joint: &JointConfig,
+) -> (TagMap, Vec<Pose2>, JointReport) {
+    let first = learn_attempt(samples, model.clone(), config, joint);
+    if !first.2.diverged || joint.retry_revisit_steps == joint.revisit_steps {
+        return first;
+    }
+    let retry = JointConfig {
+        revisit_steps: joint.retry_revisit_steps,
+        ..*joint
+    };
+    let (map, poses, mut report) = learn_attempt(samples, model, config, &retry);
+    if report.diverged {
+        return first;
+    }
+    report.retried = true;
+    (map, poses, report)
+}
+
+/// One attempt of [`learn_jointly`] with these settings (falling back to the odometry when it
+/// diverges).
+fn learn_attempt(
     samples: &[(&Snapshot, Pose2)],
     model: ReadModel,
     config: TagMapConfig,

@@ -914,6 +914,10 @@ pub async fn run_trial(
         "joint_diverged",
         if joint_report.diverged { 1.0 } else { 0.0 },
     );
+    rec.metric(
+        "joint_retried",
+        if joint_report.retried { 1.0 } else { 0.0 },
+    );
     rec.metric("cluster_database_steps", cluster_steps as f64);
     rec.metric("states", db.states.len() as f64);
     rec.metric("fingerprints", fingerprints.len() as f64);
