@@ -152,7 +152,10 @@ pub struct Summary {
 /// For every `X_nees_per_dof` with a `X_nees_dof` beside it in the trials: replaces the mean
 /// over trials by the pooled NEES per degree of freedom (weighted by each trial's dof), sets
 /// `X_nees_dof` to the total, and adds `X_nees_band_low` / `X_nees_band_high`, the two-sided
-/// 95 % band of a consistent filter (χ² with that many dof, divided by it).
+/// 95 % band of a consistent filter (χ² with that many dof, divided by it). When every trial
+/// also gives `X_nees_eff_dof` (its NEES sums correlated terms, e.g. the beacons of one map, and
+/// behaves like a scaled χ² with that many dof), the band is that of the pooled sum's mean and
+/// variance, `χ²(h) / h` with `h = (Σ dᵢ)² / Σ (dᵢ² / hᵢ)`, and `X_nees_eff_dof` becomes `h`.
 fn pool_nees(results: &[TrialResult], extra: &mut Vec<(String, f64)>) {
     let keys: Vec<String> = extra
         .iter()
@@ -163,31 +166,46 @@ fn pool_nees(results: &[TrialResult], extra: &mut Vec<(String, f64)>) {
             format!("{prefix}_nees_per_dof"),
             format!("{prefix}_nees_dof"),
         );
-        let (mut sum, mut total) = (0.0, 0.0);
+        let eff = format!("{prefix}_nees_eff_dof");
+        // Variance of the pooled sum in units of χ²: Σ dᵢ² / hᵢ (hᵢ = dᵢ when the trial gives
+        // no effective dof, i.e. its terms are independent).
+        let (mut sum, mut total, mut var) = (0.0, 0.0, 0.0);
+        let mut all_eff = true;
         for r in results {
             let get = |k: &str| r.extra.iter().find(|(n, _)| n == k).map(|(_, v)| *v);
             if let (Some(v), Some(d)) = (get(&per), get(&dof)) {
                 sum += v * d;
                 total += d;
+                let h = get(&eff).filter(|h| *h > 0.0 && h.is_finite());
+                all_eff &= h.is_some();
+                var += d * d / h.unwrap_or(d);
             }
         }
         if total <= 0.0 {
             continue;
         }
+        // The band of a scaled χ² with the pooled sum's mean and variance (moment matching).
+        let effective = if var > 0.0 {
+            total * total / var
+        } else {
+            total
+        };
         for (k, v) in extra.iter_mut() {
             if *k == per {
                 *v = sum / total;
             } else if *k == dof {
                 *v = total;
+            } else if *k == eff && all_eff {
+                *v = effective;
             }
         }
         extra.push((
             format!("{prefix}_nees_band_low"),
-            chi2_quantile(total, -1.959_964) / total,
+            chi2_quantile(effective, -1.959_964) / effective,
         ));
         extra.push((
             format!("{prefix}_nees_band_high"),
-            chi2_quantile(total, 1.959_964) / total,
+            chi2_quantile(effective, 1.959_964) / effective,
         ));
     }
 }
@@ -352,6 +370,37 @@ mod tests {
         assert!((get("beacon_nees_per_dof") - 1.3).abs() < 1e-12);
         assert_eq!(get("beacon_nees_dof"), 10.0);
         // χ²(10): 3.247 and 20.483 at 2.5 % and 97.5 %.
+        assert!((get("beacon_nees_band_low") * 10.0 - 3.247).abs() < 0.05);
+        assert!((get("beacon_nees_band_high") * 10.0 - 20.483).abs() < 0.1);
+    }
+
+    #[test]
+    fn correlated_nees_terms_widen_the_band_to_their_effective_dof() {
+        let r = |nees: f64, dof: f64, eff: f64| TrialResult {
+            trial: 0,
+            seed: 0,
+            errors: None,
+            time_to_goal: None,
+            success: true,
+            extra: vec![
+                ("beacon_nees_per_dof".into(), nees),
+                ("beacon_nees_dof".into(), dof),
+                ("beacon_nees_eff_dof".into(), eff),
+            ],
+        };
+        // Two trials of 20 dof whose terms behave like 5 independent ones each: Var = 2·(400/5)
+        // per trial, pooled h = 40² / 160 = 10, the band of χ²(10) / 10.
+        let s = Summary::from_trials(&[r(1.0, 20.0, 5.0), r(0.5, 20.0, 5.0)]);
+        let get = |k: &str| {
+            s.extra
+                .iter()
+                .find(|(n, _)| n == k)
+                .map(|(_, v)| *v)
+                .unwrap()
+        };
+        assert!((get("beacon_nees_per_dof") - 0.75).abs() < 1e-12);
+        assert_eq!(get("beacon_nees_dof"), 40.0);
+        assert!((get("beacon_nees_eff_dof") - 10.0).abs() < 1e-12);
         assert!((get("beacon_nees_band_low") * 10.0 - 3.247).abs() < 0.05);
         assert!((get("beacon_nees_band_high") * 10.0 - 20.483).abs() < 0.1);
     }
