@@ -175,29 +175,39 @@ pub fn learn_jointly(
     config: TagMapConfig,
     joint: &JointConfig,
 ) -> (TagMap, Vec<Pose2>, JointReport) {
-    let first = learn_attempt(samples, model.clone(), config, joint);
-    if !first.2.diverged || joint.retry_revisit_steps == joint.revisit_steps {
+    let retries = joint.retry_revisit_steps != joint.revisit_steps;
+    // The odometry fallback is the same whatever the settings: placed once, by the last attempt.
+    let first = learn_attempt(samples, model.clone(), config, joint, !retries);
+    if !first.2.diverged || !retries {
         return first;
     }
     let retry = JointConfig {
         revisit_steps: joint.retry_revisit_steps,
         ..*joint
     };
-    let (map, poses, mut report) = learn_attempt(samples, model, config, &retry);
+    let (map, poses, mut report) = learn_attempt(samples, model, config, &retry, true);
     if report.diverged {
-        return first;
+        // Both diverged: the odometry and its map, reported as the first attempt.
+        let fallback = JointReport {
+            mean_correction_m: report.mean_correction_m,
+            max_correction_m: report.max_correction_m,
+            ..first.2
+        };
+        return (map, poses, fallback);
     }
     report.retried = true;
     (map, poses, report)
 }
 
-/// One attempt of [`learn_jointly`] with these settings (falling back to the odometry when it
-/// diverges).
+/// One attempt of [`learn_jointly`] with these settings; when it diverges and `fallback` is
+/// set, the result is the odometry and the map placed along it (otherwise the diverged
+/// trajectory, flagged).
 fn learn_attempt(
     samples: &[(&Snapshot, Pose2)],
     model: ReadModel,
     config: TagMapConfig,
     joint: &JointConfig,
+    fallback: bool,
 ) -> (TagMap, Vec<Pose2>, JointReport) {
     let snapshots: Vec<&Snapshot> = samples.iter().map(|(s, _)| *s).collect();
     let odometry: Vec<Pose2> = samples.iter().map(|(_, p)| *p).collect();
@@ -354,8 +364,8 @@ fn learn_attempt(
             break;
         }
     }
-    if diverged {
-        report.diverged = true;
+    report.diverged = diverged;
+    if diverged && fallback {
         poses.clone_from(&odometry);
         let index = mapper.index(&poses);
         for (k, slot) in located.iter_mut().enumerate() {
