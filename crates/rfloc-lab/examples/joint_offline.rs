@@ -14,35 +14,20 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use rfloc_lab::scenario::{write_exploration, ExplorationRow};
 use rfloc_pose::Pose2;
 use rfloc_snapshot::{learn_jointly, JointConfig, Survey, TagMap};
 
-#[derive(serde::Deserialize)]
-struct Row {
-    x: f64,
-    y: f64,
-    theta: f64,
-    odom_x: f64,
-    odom_y: f64,
-    odom_theta: f64,
-}
-
-fn env(name: &str, v: &mut f64) {
+fn env<T: std::str::FromStr>(name: &str, v: &mut T) {
     if let Ok(s) = std::env::var(format!("JOINT_{}", name.to_ascii_uppercase())) {
-        *v = s.parse().expect(name);
-    }
-}
-
-fn env_n(name: &str, v: &mut usize) {
-    if let Ok(s) = std::env::var(format!("JOINT_{}", name.to_ascii_uppercase())) {
-        *v = s.parse().expect(name);
+        *v = s.parse().ok().expect(name);
     }
 }
 
 fn config() -> JointConfig {
     let mut c = JointConfig::default();
-    env_n("chunk", &mut c.chunk);
-    env_n("rounds", &mut c.rounds);
+    env("chunk", &mut c.chunk);
+    env("rounds", &mut c.rounds);
     env("odo_trans_abs", &mut c.odo_trans_abs);
     env("odo_trans_rel", &mut c.odo_trans_rel);
     env("odo_rot_abs", &mut c.odo_rot_abs);
@@ -53,13 +38,13 @@ fn config() -> JointConfig {
     env("huber", &mut c.huber);
     env("gate", &mut c.gate);
     env("max_tag_sigma", &mut c.max_tag_sigma);
-    env_n("min_tag_reads", &mut c.min_tag_reads);
-    env_n("min_mapped", &mut c.min_mapped);
-    env_n("relock_after", &mut c.relock_after);
-    env_n("anchor_steps", &mut c.anchor_steps);
+    env("min_tag_reads", &mut c.min_tag_reads);
+    env("min_mapped", &mut c.min_mapped);
+    env("relock_after", &mut c.relock_after);
+    env("anchor_steps", &mut c.anchor_steps);
     env("max_drift_m", &mut c.max_drift_m);
     env("max_drift_rel", &mut c.max_drift_rel);
-    env_n("revisit_steps", &mut c.revisit_steps);
+    env("revisit_steps", &mut c.revisit_steps);
     c
 }
 
@@ -81,7 +66,7 @@ fn main() {
     let read = |name: &str| std::fs::read(dir.join(name)).expect(name);
     let survey = Survey::from_json(&read("survey.v1.json"), "survey.v1.json").unwrap();
     let map = TagMap::from_json(&read("tag-map.v1.json"), "tag-map.v1.json").unwrap();
-    let rows: Vec<Row> = csv::Reader::from_path(dir.join("exploration.csv"))
+    let rows: Vec<ExplorationRow> = csv::Reader::from_path(dir.join("exploration.csv"))
         .unwrap()
         .deserialize()
         .collect::<Result<_, _>>()
@@ -115,29 +100,14 @@ fn main() {
     }
     println!("tags mapped {}", learned.len());
     let out = dir.join("exploration-offline.csv");
-    let mut w = csv::Writer::from_path(&out).unwrap();
-    w.write_record([
-        "step",
-        "x",
-        "y",
-        "theta",
-        "odom_x",
-        "odom_y",
-        "odom_theta",
-        "learned_x",
-        "learned_y",
-        "learned_theta",
-    ])
+    write_exploration(
+        &out,
+        truth
+            .iter()
+            .zip(&odometry)
+            .zip(&poses)
+            .map(|((t, o), l)| (*t, *o, *l)),
+    )
     .unwrap();
-    for (i, ((t, o), l)) in truth.iter().zip(&odometry).zip(&poses).enumerate() {
-        w.write_record(
-            [
-                i as f64, t.x, t.y, t.theta, o.x, o.y, o.theta, l.x, l.y, l.theta,
-            ]
-            .map(|v| v.to_string()),
-        )
-        .unwrap();
-    }
-    w.flush().unwrap();
     println!("wrote {}", out.display());
 }

@@ -21,6 +21,8 @@ mod lockstep;
 pub mod run_mcap;
 pub(crate) mod snapshot;
 
+pub use snapshot::{write_exploration, ExplorationRow};
+
 /// Options of a simulated run.
 #[derive(Debug, Clone, Default)]
 pub struct SimOptions {

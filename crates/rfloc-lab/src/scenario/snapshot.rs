@@ -268,22 +268,25 @@ fn read_model(scenario: &Scenario) -> ReadModel {
 
 /// One exploration step in `exploration.csv`: where the robot was, what its odometry said and
 /// where the joint learning of map and trajectory placed it.
-#[derive(serde::Serialize)]
-struct ExplorationRow {
-    step: usize,
-    x: f64,
-    y: f64,
-    theta: f64,
-    odom_x: f64,
-    odom_y: f64,
-    odom_theta: f64,
-    learned_x: f64,
-    learned_y: f64,
-    learned_theta: f64,
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ExplorationRow {
+    pub step: usize,
+    pub x: f64,
+    pub y: f64,
+    pub theta: f64,
+    pub odom_x: f64,
+    pub odom_y: f64,
+    pub odom_theta: f64,
+    pub learned_x: f64,
+    pub learned_y: f64,
+    pub learned_theta: f64,
 }
 
 /// Writes the exploration's true, odometry and learned poses, one row per step.
-fn write_exploration(
+///
+/// # Errors
+/// When the file cannot be written.
+pub fn write_exploration(
     path: &Path,
     rows: impl Iterator<Item = (Pose2, Pose2, Pose2)>,
 ) -> anyhow::Result<()> {
