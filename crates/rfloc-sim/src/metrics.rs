@@ -296,6 +296,15 @@ impl Summary {
 mod tests {
     use super::*;
 
+    /// The summary's extra metric `k` (the test fails when it is missing).
+    fn extra(s: &Summary, k: &str) -> f64 {
+        s.extra
+            .iter()
+            .find(|(n, _)| n == k)
+            .map(|(_, v)| *v)
+            .unwrap()
+    }
+
     fn line(n: usize, dy: f64) -> Vec<TimedPose> {
         (0..n)
             .map(|i| TimedPose::new(i as f64, Pose2::new(i as f64, dy, 0.0)))
@@ -360,13 +369,7 @@ mod tests {
             ],
         };
         let s = Summary::from_trials(&[r(1.0, 8.0), r(2.5, 2.0)]);
-        let get = |k: &str| {
-            s.extra
-                .iter()
-                .find(|(n, _)| n == k)
-                .map(|(_, v)| *v)
-                .unwrap()
-        };
+        let get = |k: &str| extra(&s, k);
         assert!((get("beacon_nees_per_dof") - 1.3).abs() < 1e-12);
         assert_eq!(get("beacon_nees_dof"), 10.0);
         // χ²(10): 3.247 and 20.483 at 2.5 % and 97.5 %.
@@ -391,13 +394,7 @@ mod tests {
         // Two trials of 20 dof whose terms behave like 5 independent ones each: Var = 2·(400/5)
         // per trial, pooled h = 40² / 160 = 10, the band of χ²(10) / 10.
         let s = Summary::from_trials(&[r(1.0, 20.0, 5.0), r(0.5, 20.0, 5.0)]);
-        let get = |k: &str| {
-            s.extra
-                .iter()
-                .find(|(n, _)| n == k)
-                .map(|(_, v)| *v)
-                .unwrap()
-        };
+        let get = |k: &str| extra(&s, k);
         assert!((get("beacon_nees_per_dof") - 0.75).abs() < 1e-12);
         assert_eq!(get("beacon_nees_dof"), 40.0);
         assert!((get("beacon_nees_eff_dof") - 10.0).abs() < 1e-12);

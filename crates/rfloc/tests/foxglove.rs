@@ -153,15 +153,8 @@ fn a_replay_writes_an_mcap_that_mcap_readers_accept() {
     );
     let bytes = std::fs::read(&out).unwrap();
     let summary = mcap::Summary::read(&bytes).unwrap().expect("summary");
-    let count = |topic: &str| -> u64 {
-        let stats = summary.stats.as_ref().unwrap();
-        summary
-            .channels
-            .iter()
-            .filter(|(_, c)| c.topic == topic)
-            .map(|(id, _)| stats.channel_message_counts.get(id).copied().unwrap_or(0))
-            .sum()
-    };
+    assert!(summary.stats.is_some(), "no statistics");
+    let count = |topic: &str| common::mcap_topic_count(&summary, topic);
     let poses = String::from_utf8_lossy(&replay.stdout)
         .lines()
         .filter(|l| l.contains("\"class\":\"POSE\""))

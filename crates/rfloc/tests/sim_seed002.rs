@@ -2,6 +2,8 @@
 //! drivers on ptys, the daemon's HF-grid pipeline, captures and a report.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
+
 use std::path::PathBuf;
 use std::process::Command;
 
@@ -58,15 +60,8 @@ fn seed002_trial_initialises_within_the_targets() {
     // run.mcap holds the truth and the estimate.
     let bytes = std::fs::read(trial.join("run.mcap")).unwrap();
     let summary = mcap::Summary::read(&bytes).unwrap().expect("a summary");
-    let stats = summary.stats.unwrap();
-    let count = |topic: &str| -> u64 {
-        summary
-            .channels
-            .iter()
-            .filter(|(_, c)| c.topic == topic)
-            .map(|(id, _)| stats.channel_message_counts.get(id).copied().unwrap_or(0))
-            .sum()
-    };
+    assert!(summary.stats.is_some(), "no statistics");
+    let count = |topic: &str| common::mcap_topic_count(&summary, topic);
     assert!(count("/rfloc/truth") > 50, "{}", count("/rfloc/truth"));
     assert_eq!(count("/rfloc/pose"), 1);
     assert_eq!(count("/rfloc/tags"), 1);

@@ -6,6 +6,8 @@
 //! numbers when repeated with the same seed (identical files: `sim_determinism.rs`).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -145,15 +147,8 @@ fn check_run_mcap(trial: &Path) {
     let path = trial.join("run.mcap");
     let bytes = std::fs::read(&path).unwrap();
     let summary = mcap::Summary::read(&bytes).unwrap().expect("a summary");
-    let stats = summary.stats.as_ref().expect("statistics");
-    let count = |topic: &str| -> u64 {
-        summary
-            .channels
-            .iter()
-            .filter(|(_, c)| c.topic == topic)
-            .map(|(id, _)| stats.channel_message_counts.get(id).copied().unwrap_or(0))
-            .sum()
-    };
+    assert!(summary.stats.is_some(), "statistics");
+    let count = |topic: &str| common::mcap_topic_count(&summary, topic);
     let lines = |f: &str| -> u64 {
         std::fs::read_to_string(trial.join(f))
             .unwrap()

@@ -10,6 +10,19 @@ use std::time::Duration;
 use tokio::io::{BufReader, Lines};
 use tokio::net::TcpStream;
 
+/// Messages on `topic` in an MCAP file's summary statistics (0 when it has none).
+pub fn mcap_topic_count(summary: &mcap::Summary, topic: &str) -> u64 {
+    let Some(stats) = summary.stats.as_ref() else {
+        return 0;
+    };
+    summary
+        .channels
+        .iter()
+        .filter(|(_, c)| c.topic == topic)
+        .map(|(id, _)| stats.channel_message_counts.get(id).copied().unwrap_or(0))
+        .sum()
+}
+
 /// A free loopback TCP port.
 pub fn free_port() -> u16 {
     std::net::TcpListener::bind("127.0.0.1:0")
