@@ -45,6 +45,11 @@ fn config() -> JointConfig {
     env("max_drift_m", &mut c.max_drift_m);
     env("max_drift_rel", &mut c.max_drift_rel);
     env("revisit_steps", &mut c.revisit_steps);
+    env("closure_rounds", &mut c.closure_rounds);
+    env("closure_gap", &mut c.closure_gap);
+    env("closure_stride", &mut c.closure_stride);
+    env("closure_min_shared", &mut c.closure_min_shared);
+    env("closure_unary_weight", &mut c.closure_unary_weight);
     c
 }
 

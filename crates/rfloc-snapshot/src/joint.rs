@@ -27,6 +27,17 @@
 //!   normal equations, solved exactly in O(n), a step taken only when it lowers the cost, the
 //!   first pose fixed), every tag is placed again, and the factors are computed again on the new
 //!   map (gated against the smoothed poses).
+//! - **Pose-graph rounds.** The rounds move each pose towards a map placed from the poses
+//!   themselves, so a map bent on the first visit of a place (the odometry's heading drift)
+//!   stays bent: the poses of a revisit follow it. [`JointConfig::closure_rounds`] times, the
+//!   factors are computed on the current map and turned into **closures**: for every
+//!   [`JointConfig::closure_stride`]-th pose, the relative pose to the earlier pose (at least
+//!   [`JointConfig::closure_gap`] steps before) that read the most of the same tags, taken from
+//!   the two factors' means (both on one map, so where the map is off the two are off alike)
+//!   with their covariances propagated. The trajectory is then optimised over the odometry and
+//!   the closures alone (a pose graph; Levenberg–Marquardt with conjugate gradients
+//!   preconditioned by the chain, module `posegraph`), which lets whole regions of the map
+//!   rotate and shift together as the loops demand, and every tag is placed again.
 //! - **Frame.** Finally poses and tags are moved rigidly so that the first
 //!   [`JointConfig::anchor_steps`] poses lie on their odometry (the frame of a live robot's
 //!   start).
@@ -37,6 +48,7 @@ use nalgebra::{Matrix3, Vector3};
 use rfloc_pose::{angle_diff, Pose2};
 use serde::{Deserialize, Serialize};
 
+use crate::posegraph::{relative_jacobians, Closure, Graph, PoseFactor as Factor};
 use crate::snapshot::Snapshot;
 use crate::tagmap::{
     LikelihoodScratch, MapObservation, MappedTag, Mapper, ReadModel, TagMap, TagMapConfig,
@@ -97,6 +109,18 @@ pub struct JointConfig {
     /// When the learning diverges, it is tried once more with this `revisit_steps` (the two
     /// fail on different explorations) before falling back to the odometry.
     pub retry_revisit_steps: usize,
+    /// Pose-graph rounds after the rounds: the trajectory is optimised over the odometry and
+    /// relative-pose closures between visits of one place (the map's unary factors only with
+    /// weight [`JointConfig::closure_unary_weight`]), then every tag placed again.
+    pub closure_rounds: usize,
+    /// Two poses form a closure only when at least this many steps apart.
+    pub closure_gap: usize,
+    /// One closure per this many poses.
+    pub closure_stride: usize,
+    /// ... and only when the two read at least this many of the same mapped tags.
+    pub closure_min_shared: usize,
+    /// Weight of the unary map factors in the pose-graph rounds.
+    pub closure_unary_weight: f64,
 }
 
 impl Default for JointConfig {
@@ -129,6 +153,11 @@ impl Default for JointConfig {
             max_drift_rel: 0.02,
             revisit_steps: 0,
             retry_revisit_steps: 30,
+            closure_rounds: 2,
+            closure_gap: 200,
+            closure_stride: 4,
+            closure_min_shared: 4,
+            closure_unary_weight: 0.0,
         }
     }
 }
@@ -156,13 +185,8 @@ pub struct JointReport {
     pub last_round_change_m: f64,
     /// The first attempt diverged and this is the second, with `retry_revisit_steps`.
     pub retried: bool,
-}
-
-/// A pose's Gaussian factor: mean and information.
-#[derive(Debug, Clone, Copy)]
-struct Factor {
-    mean: Pose2,
-    info: Matrix3<f64>,
+    /// Closures of the last pose-graph round.
+    pub closures: usize,
 }
 
 /// Learns the tag map and the poses of `samples` (snapshot, odometry pose) together (see the
@@ -313,19 +337,41 @@ fn learn_attempt(
         }
         if round + 1 < joint.rounds {
             let map = mapper.build(&located);
-            let gate = joint.gate * joint.gate;
-            for ((slot, p), s) in factors.iter_mut().zip(&poses).zip(&snapshots) {
-                *slot = factor(&map, &map.observe(s), p, joint, &mut work).filter(|f| {
-                    let e = Vector3::new(
-                        f.mean.x - p.x,
-                        f.mean.y - p.y,
-                        angle_diff(f.mean.theta, p.theta),
-                    );
-                    (e.transpose() * f.info * e).x <= gate
-                });
-            }
+            gated_factors(&map, &snapshots, &poses, joint, &mut work, &mut factors);
             report.factors = factors.iter().flatten().count();
         }
+    }
+    // Pose-graph rounds: closures between visits of one place, from the factors on the
+    // current map; the whole trajectory moves to agree with them and the odometry.
+    for _ in 0..joint.closure_rounds {
+        let map = mapper.build(&located);
+        gated_factors(&map, &snapshots, &poses, joint, &mut work, &mut factors);
+        let closures = closures(&factors, &read_by, &mapper, joint);
+        report.closures = closures.len();
+        let unary: Vec<Option<Factor>> = factors
+            .iter()
+            .map(|f| {
+                f.filter(|_| joint.closure_unary_weight > 0.0)
+                    .map(|f| Factor {
+                        mean: f.mean,
+                        info: f.info * joint.closure_unary_weight,
+                    })
+            })
+            .collect();
+        Graph {
+            increments: &increments,
+            odo_info: &odo_info,
+            factors: &unary,
+            closures: &closures,
+            huber: joint.huber,
+        }
+        .optimise(&mut poses, joint.gauss_newton);
+        let index = mapper.index(&poses);
+        for (k, slot) in located.iter_mut().enumerate() {
+            let warm = slot.as_ref().map(|t| (t.x, t.y));
+            *slot = mapper.locate_tag(k, &index, warm).or(slot.take());
+        }
+        report.rounds += 1;
     }
     // The frame: the rigid motion that puts the first `anchor_steps` poses on their odometry
     // (which has not drifted yet there), applied to the poses and the tags.
@@ -648,62 +694,105 @@ fn moments(
     Some((m, 0.5 * (cov + cov.transpose())))
 }
 
-/// Residual of the odometry factor between `a` and `b` (increment `u`), in `a`'s frame.
-fn odometry_residual(a: &Pose2, b: &Pose2, u: &Pose2) -> Vector3<f64> {
-    let (s, c) = a.theta.sin_cos();
-    let (dx, dy) = (b.x - a.x, b.y - a.y);
-    Vector3::new(
-        c * dx + s * dy - u.x,
-        -s * dx + c * dy - u.y,
-        angle_diff(b.theta - a.theta, u.theta),
-    )
-}
-
-/// Residual of a pose factor, and its Huber weight.
-fn factor_residual(p: &Pose2, f: &Factor, huber: f64) -> (Vector3<f64>, f64, f64) {
-    let e = Vector3::new(
-        p.x - f.mean.x,
-        p.y - f.mean.y,
-        angle_diff(p.theta, f.mean.theta),
-    );
-    let d = (e.transpose() * f.info * e).x.max(0.0).sqrt();
-    if d > huber {
-        (e, huber / d, huber * (2.0 * d - huber))
-    } else {
-        (e, 1.0, d * d)
+/// The factor of every pose on `map`, kept when within the gate of the pose.
+fn gated_factors(
+    map: &TagMap,
+    snapshots: &[&Snapshot],
+    poses: &[Pose2],
+    joint: &JointConfig,
+    work: &mut FactorWork,
+    factors: &mut [Option<Factor>],
+) {
+    let gate = joint.gate * joint.gate;
+    for ((slot, p), s) in factors.iter_mut().zip(poses).zip(snapshots) {
+        *slot = factor(map, &map.observe(s), p, joint, work).filter(|f| {
+            let e = Vector3::new(
+                f.mean.x - p.x,
+                f.mean.y - p.y,
+                angle_diff(f.mean.theta, p.theta),
+            );
+            (e.transpose() * f.info * e).x <= gate
+        });
     }
 }
 
-/// The cost the smoothing minimises (odometry χ² plus Huber-robust factor terms).
-fn chain_cost(
-    poses: &[Pose2],
-    increments: &[Pose2],
-    odo_info: &[Matrix3<f64>],
+/// Closures between visits: for every `closure_stride`-th pose with a factor, the earlier pose
+/// (at least `closure_gap` steps before, with a factor) that read the most of the same mapped
+/// tags, if at least `closure_min_shared`. The measurement is the relative pose of the two
+/// factors' means (both on the same map, so the map's error where they are cancels), its
+/// covariance the two factors' propagated.
+fn closures(
     factors: &[Option<Factor>],
-    huber: f64,
-) -> f64 {
-    let odo: f64 = poses
-        .windows(2)
-        .zip(increments)
-        .zip(odo_info)
-        .filter_map(|((w, u), info)| {
-            let e = odometry_residual(w.first()?, w.get(1)?, u);
-            Some((e.transpose() * info * e).x)
-        })
-        .sum();
-    let fac: f64 = poses
+    read_by: &[Vec<usize>],
+    mapper: &Mapper<'_>,
+    joint: &JointConfig,
+) -> Vec<Closure> {
+    let n = factors.len();
+    let mut shared = vec![0_u32; n];
+    let mut touched: Vec<usize> = Vec::new();
+    let mut out = Vec::new();
+    for (b, tags) in read_by
         .iter()
-        .zip(factors)
-        .skip(1)
-        .filter_map(|(p, f)| Some(factor_residual(p, f.as_ref()?, huber).2))
-        .sum();
-    odo + fac
+        .enumerate()
+        .step_by(joint.closure_stride.max(1))
+    {
+        let Some(Some(fb)) = factors.get(b) else {
+            continue;
+        };
+        let Some(limit) = b.checked_sub(joint.closure_gap.max(1)) else {
+            continue;
+        };
+        for &k in tags {
+            for (i, _) in mapper.reads_of(k) {
+                if *i > limit || !matches!(factors.get(*i), Some(Some(_))) {
+                    continue;
+                }
+                if let Some(c) = shared.get_mut(*i) {
+                    if *c == 0 {
+                        touched.push(*i);
+                    }
+                    *c += 1;
+                }
+            }
+        }
+        let best = touched
+            .iter()
+            .map(|&i| (shared.get(i).copied().unwrap_or(0), i))
+            .max();
+        for &i in &touched {
+            if let Some(c) = shared.get_mut(i) {
+                *c = 0;
+            }
+        }
+        touched.clear();
+        let Some((count, a)) = best else {
+            continue;
+        };
+        let Some(Some(fa)) = factors.get(a) else {
+            continue;
+        };
+        if (count as usize) < joint.closure_min_shared {
+            continue;
+        }
+        let (ja, jb) = relative_jacobians(&fa.mean, &fb.mean);
+        let (Some(ca), Some(cb)) = (fa.info.try_inverse(), fb.info.try_inverse()) else {
+            continue;
+        };
+        let cov = ja * ca * ja.transpose() + jb * cb * jb.transpose();
+        let Some(info) = cov.try_inverse() else {
+            continue;
+        };
+        out.push(Closure {
+            a,
+            b,
+            z: fb.mean.relative_to(&fa.mean),
+            info: 0.5 * (info + info.transpose()),
+        });
+    }
+    out
 }
 
-/// Levenberg–Marquardt on a chain: `poses[0]` fixed, odometry factors between neighbours
-/// (`increments[i]`, information `odo_info[i]` between `i` and `i + 1`), and the unary
-/// `factors` (Huber-weighted). The normal equations are block tridiagonal and solved exactly;
-/// a step is taken only when it lowers the cost.
+/// Levenberg–Marquardt on the chain with its unary factors (see [`Graph`]).
 fn smooth(
     poses: &mut [Pose2],
     increments: &[Pose2],
@@ -711,196 +800,19 @@ fn smooth(
     factors: &[Option<Factor>],
     j: &JointConfig,
 ) {
-    let m = poses.len();
-    if m < 2 {
-        return;
+    Graph {
+        increments,
+        odo_info,
+        factors,
+        closures: &[],
+        huber: j.huber,
     }
-    let mut diag = vec![Matrix3::<f64>::zeros(); m];
-    let mut off = vec![Matrix3::<f64>::zeros(); m - 1];
-    let mut grad = vec![Vector3::<f64>::zeros(); m];
-    let mut cost = chain_cost(poses, increments, odo_info, factors, j.huber);
-    let mut lambda = 1e-4;
-    for _ in 0..j.gauss_newton.max(1) {
-        diag.iter_mut().for_each(|d| *d = Matrix3::zeros());
-        off.iter_mut().for_each(|d| *d = Matrix3::zeros());
-        grad.iter_mut().for_each(|g| *g = Vector3::zeros());
-        // Odometry factors.
-        for i in 0..m - 1 {
-            let (Some(a), Some(b), Some(u), Some(info)) = (
-                poses.get(i),
-                poses.get(i + 1),
-                increments.get(i),
-                odo_info.get(i),
-            ) else {
-                continue;
-            };
-            let (s, c) = a.theta.sin_cos();
-            let (dx, dy) = (b.x - a.x, b.y - a.y);
-            let e = odometry_residual(a, b, u);
-            let ja = Matrix3::new(
-                -c,
-                -s,
-                -s * dx + c * dy,
-                s,
-                -c,
-                -c * dx - s * dy,
-                0.0,
-                0.0,
-                -1.0,
-            );
-            let jb = Matrix3::new(c, s, 0.0, -s, c, 0.0, 0.0, 0.0, 1.0);
-            let (jai, jbi) = (ja.transpose() * info, jb.transpose() * info);
-            if let (Some(d), Some(g)) = (diag.get_mut(i), grad.get_mut(i)) {
-                *d += jai * ja;
-                *g += jai * e;
-            }
-            if let (Some(d), Some(g)) = (diag.get_mut(i + 1), grad.get_mut(i + 1)) {
-                *d += jbi * jb;
-                *g += jbi * e;
-            }
-            if let Some(o) = off.get_mut(i) {
-                *o += jai * jb;
-            }
-        }
-        // Pose factors (not on the anchored first pose).
-        for (i, f) in factors.iter().enumerate().skip(1) {
-            let (Some(f), Some(p)) = (f, poses.get(i)) else {
-                continue;
-            };
-            let (e, weight, _) = factor_residual(p, f, j.huber);
-            if let (Some(d), Some(g)) = (diag.get_mut(i), grad.get_mut(i)) {
-                *d += weight * f.info;
-                *g += weight * f.info * e;
-            }
-        }
-        // The first pose is fixed: its row and column are dropped (what the factors between
-        // it and the second pose add to the second stays).
-        if let (Some(d), Some(o), Some(g)) = (diag.first_mut(), off.first_mut(), grad.first_mut()) {
-            *d = Matrix3::identity();
-            *o = Matrix3::zeros();
-            *g = Vector3::zeros();
-        }
-        // Damped steps until one lowers the cost.
-        let mut accepted = None;
-        for _ in 0..8 {
-            let damped: Vec<Matrix3<f64>> = diag
-                .iter()
-                .map(|d| d + Matrix3::from_diagonal(&d.diagonal()) * lambda)
-                .collect();
-            let Some(step) = solve_block_tridiagonal(&damped, &off, &grad) else {
-                lambda *= 10.0;
-                continue;
-            };
-            let trial: Vec<Pose2> = poses
-                .iter()
-                .zip(&step)
-                .map(|(p, d)| Pose2::new(p.x - d.x, p.y - d.y, p.theta - d.z))
-                .collect();
-            let c = chain_cost(&trial, increments, odo_info, factors, j.huber);
-            if c < cost {
-                let largest = step
-                    .iter()
-                    .map(|d| d.x.abs().max(d.y.abs()).max(d.z.abs()))
-                    .fold(0.0, f64::max);
-                accepted = Some((trial, c, largest));
-                lambda = (lambda * 0.1).max(1e-9);
-                break;
-            }
-            lambda *= 10.0;
-        }
-        let Some((trial, c, largest)) = accepted else {
-            return;
-        };
-        poses.copy_from_slice(&trial);
-        let relative = (cost - c) / cost.max(1e-12);
-        cost = c;
-        if largest < 1e-5 || relative < 1e-6 {
-            break;
-        }
-    }
-}
-
-/// Solves `H x = g` for a symmetric block-tridiagonal `H` (diagonal blocks `diag`, blocks
-/// `off[i] = H[i][i+1]`) by block elimination. `None` when a pivot block is singular.
-fn solve_block_tridiagonal(
-    diag: &[Matrix3<f64>],
-    off: &[Matrix3<f64>],
-    g: &[Vector3<f64>],
-) -> Option<Vec<Vector3<f64>>> {
-    let m = diag.len();
-    let mut pivots: Vec<Matrix3<f64>> = Vec::with_capacity(m);
-    let mut y: Vec<Vector3<f64>> = Vec::with_capacity(m);
-    for i in 0..m {
-        let (d, gi) = (diag.get(i)?, g.get(i)?);
-        if i == 0 {
-            pivots.push(d.try_inverse()?);
-            y.push(*gi);
-            continue;
-        }
-        let b = off.get(i - 1)?;
-        let prev = pivots.get(i - 1)?;
-        let l = b.transpose() * prev;
-        let schur = d - l * b;
-        pivots.push(schur.try_inverse()?);
-        y.push(gi - l * y.get(i - 1)?);
-    }
-    let mut x = vec![Vector3::zeros(); m];
-    for i in (0..m).rev() {
-        let rhs = if i + 1 < m {
-            y.get(i)? - off.get(i)? * x.get(i + 1)?
-        } else {
-            *y.get(i)?
-        };
-        *x.get_mut(i)? = pivots.get(i)? * rhs;
-    }
-    Some(x)
+    .optimise(poses, j.gauss_newton);
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn block_tridiagonal_solve_matches_dense() {
-        // A random symmetric positive definite block-tridiagonal system of 4 blocks.
-        let mut seed = 7_u32;
-        let mut r = move || {
-            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            f64::from(seed) / 4_294_967_296.0 - 0.5
-        };
-        let m = 4;
-        let off: Vec<Matrix3<f64>> = (0..m - 1).map(|_| Matrix3::from_fn(|_, _| r())).collect();
-        let diag: Vec<Matrix3<f64>> = (0..m)
-            .map(|_| {
-                let a = Matrix3::from_fn(|_, _| r());
-                a * a.transpose() + Matrix3::identity() * 5.0
-            })
-            .collect();
-        let g: Vec<Vector3<f64>> = (0..m).map(|_| Vector3::from_fn(|_, _| r())).collect();
-        let x = solve_block_tridiagonal(&diag, &off, &g).unwrap_or_default();
-        let mut dense = nalgebra::DMatrix::<f64>::zeros(3 * m, 3 * m);
-        for i in 0..m {
-            dense.view_mut((3 * i, 3 * i), (3, 3)).copy_from(&diag[i]);
-            if i + 1 < m {
-                dense
-                    .view_mut((3 * i, 3 * i + 3), (3, 3))
-                    .copy_from(&off[i]);
-                dense
-                    .view_mut((3 * i + 3, 3 * i), (3, 3))
-                    .copy_from(&off[i].transpose());
-            }
-        }
-        let rhs = nalgebra::DVector::from_iterator(3 * m, g.iter().flat_map(|v| v.iter().copied()));
-        let want = dense
-            .lu()
-            .solve(&rhs)
-            .unwrap_or_else(|| nalgebra::DVector::zeros(3 * m));
-        for i in 0..m {
-            for k in 0..3 {
-                assert!((x[i][k] - want[3 * i + k]).abs() < 1e-9, "{i} {k}");
-            }
-        }
-    }
 
     #[test]
     fn smoothing_pulls_a_drifted_chain_onto_its_factors() {

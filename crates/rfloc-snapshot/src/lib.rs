@@ -29,6 +29,7 @@ pub mod filter;
 pub mod joint;
 pub mod lattice;
 pub mod navigate;
+mod posegraph;
 mod readtable;
 pub mod state_set;
 pub mod store;
