@@ -1,5 +1,7 @@
 //! Joint learning of the tag map and the exploration trajectory on a drifting odometry: the
 //! map learned along the odometry gets worse as the exploration goes on, the joint one does not.
+//! And what is returned when a learned trajectory leaves the odometry by more than it can
+//! drift: the retry with the revisit rule, or the odometry when that diverges too.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
@@ -8,7 +10,7 @@ use common::{explore, World};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rfloc_pose::Pose2;
-use rfloc_snapshot::{learn_jointly, JointConfig, ReadModel, TagMap, TagMapConfig};
+use rfloc_snapshot::{learn_jointly, JointConfig, JointReport, ReadModel, TagMap, TagMapConfig};
 
 /// Odometry of a true path: each true increment with relative noise and a slowly wandering
 /// heading error (what wheel slip does to a differential drive).
@@ -34,16 +36,21 @@ fn odometry(truth: &[Pose2], seed: u64, heading_sigma: f64) -> Vec<Pose2> {
     out
 }
 
-/// The map learned along `samples`' poses and the one learned jointly with the path, with the
-/// same reader model (σ 150 per read, no dropout): (along, joint, joint poses, report).
-fn learn_both(
-    samples: &[(&rfloc_snapshot::Snapshot, Pose2)],
-) -> (TagMap, TagMap, Vec<Pose2>, rfloc_snapshot::JointReport) {
-    let model = ReadModel {
+/// The reader model of these tests: seed 000's fit, σ 150 per read, no dropout.
+fn reader() -> ReadModel {
+    ReadModel {
         read_sigma: 150.0,
         dropout: 0.0,
         ..ReadModel::seed000(1000.0, 1)
-    };
+    }
+}
+
+/// The map learned along `samples`' poses and the one learned jointly with the path, with the
+/// same reader model ([`reader`]): (along, joint, joint poses, report).
+fn learn_both(
+    samples: &[(&rfloc_snapshot::Snapshot, Pose2)],
+) -> (TagMap, TagMap, Vec<Pose2>, rfloc_snapshot::JointReport) {
+    let model = reader();
     let plain = TagMap::learn(
         samples.iter().copied(),
         model.clone(),
@@ -157,4 +164,191 @@ fn joint_learning_keeps_an_exact_odometry() {
         joint_tags < plain_tags + 0.02,
         "{joint_tags} vs {plain_tags}"
     );
+}
+
+/// `odo` with one faulty increment: at step `k` the encoders also count `slip` (in the robot
+/// frame) that the robot did not move, and every later pose carries it.
+fn with_slip(odo: &[Pose2], k: usize, slip: Pose2) -> Vec<Pose2> {
+    let mut out = odo[..k].to_vec();
+    for w in odo[k - 1..].windows(2) {
+        let mut u = w[1].relative_to(&w[0]);
+        if out.len() == k {
+            u = u.compose(&slip);
+        }
+        let last = *out.last().unwrap();
+        out.push(last.compose(&u));
+    }
+    out
+}
+
+/// A short exploration: 160 steps in a 4 m square at the seed's tag density, and its odometry
+/// with a slowly wandering heading (within 0.18 m of the truth). (run, truth, odometry)
+fn short_run() -> (Vec<rfloc_snapshot::Observation>, Vec<Pose2>, Vec<Pose2>) {
+    let world = World::square(41, 4.0, 32.0, 0.05);
+    let run = explore(&world, 160, 0.1, 42);
+    let truth: Vec<Pose2> = run.iter().map(|o| o.pose).collect();
+    let odo = odometry(&truth, 43, 0.002);
+    (run, truth, odo)
+}
+
+/// The settings for [`short_run`]: a flat drift bound of 0.3 m (its odometry stays within
+/// 0.18 m of the truth), and no pose-graph rounds: the run is shorter than `closure_gap`
+/// (200 steps), so it has no closures, and pose-graph rounds without closures only put the
+/// trajectory back on the odometry chain.
+fn short_run_joint() -> JointConfig {
+    JointConfig {
+        closure_rounds: 0,
+        max_drift_m: 0.3,
+        max_drift_rel: 0.0,
+        ..JointConfig::default()
+    }
+}
+
+/// Mean and largest distance of `poses` from `truth`.
+fn errors(poses: &[Pose2], truth: &[Pose2]) -> (f64, f64) {
+    let e: Vec<f64> = poses
+        .iter()
+        .zip(truth)
+        .map(|(a, b)| a.distance(b))
+        .collect();
+    (
+        e.iter().sum::<f64>() / e.len() as f64,
+        e.iter().copied().fold(0.0, f64::max),
+    )
+}
+
+/// A divergent result is the odometry and the map placed along it.
+fn assert_odometry_fallback(
+    samples: &[(&rfloc_snapshot::Snapshot, Pose2)],
+    map: &TagMap,
+    poses: &[Pose2],
+    report: &JointReport,
+) {
+    let odo: Vec<Pose2> = samples.iter().map(|(_, p)| *p).collect();
+    assert_eq!(poses, odo.as_slice());
+    assert_eq!(report.max_correction_m, 0.0, "{report:?}");
+    assert_eq!(report.mean_correction_m, 0.0, "{report:?}");
+    let along = TagMap::learn(samples.iter().copied(), reader(), TagMapConfig::default());
+    assert_eq!(map.tags, along.tags);
+}
+
+/// Settings under which the forward pass without the revisit rule runs away from the accurate
+/// odometry of [`short_run`]: every tag placed so far, even one read once (no read count or σ
+/// bound), places a pose as if the map were exact (2 mm floor), in chunks of 10 steps; the
+/// drift bound of [`short_run_joint`] (0.3 m). The first attempt is without the rule, the
+/// retry with it (30 steps).
+///
+/// Measured, each setting alone (no retry, no bound): without the rule the poses are 0.21 m
+/// from the truth on average and 0.52 m at worst (step 158, where the odometry is 0.06 m off),
+/// 55 factors are rejected, and the trajectory leaves the odometry by up to 0.47 m. A pose is
+/// placed by tags first read a few steps before, themselves placed from the very poses the
+/// factor corrects, so the trajectory follows its own error (from step 50 on, while the
+/// odometry stays within 0.07 m of the truth). With the rule (tags first read at least 30
+/// steps before the chunk) the error is 0.036 m mean, 0.095 m at worst, and the trajectory
+/// stays within 0.10 m of the odometry.
+fn credulous() -> JointConfig {
+    JointConfig {
+        chunk: 10,
+        min_tag_reads: 1,
+        max_tag_sigma: 1.0,
+        floor_xy: 0.002,
+        revisit_steps: 0,
+        retry_revisit_steps: 30,
+        ..short_run_joint()
+    }
+}
+
+/// The odometry counts a 1 m lurch at step 80 that never happened (a wheel spinning in the
+/// air). Both attempts (without and with the revisit rule) find the true path again (0.04 m
+/// from the truth at step 99) and so leave the odometry by 1.0 m, more than the 0.3 m it is
+/// assumed to drift: both diverge, and the result is the odometry and the map along it.
+#[test]
+fn both_attempts_diverging_give_the_odometry() {
+    let (run, truth, odo) = short_run();
+    let odo = with_slip(&odo, 80, Pose2::new(1.0, 0.0, 0.0));
+    let (_, worst) = errors(&odo, &truth);
+    assert!(
+        worst > 0.9,
+        "the slip should put the odometry off ({worst} m)"
+    );
+    let samples: Vec<_> = run
+        .iter()
+        .map(|o| &o.snapshot)
+        .zip(odo.iter().copied())
+        .collect();
+    let joint = short_run_joint();
+    assert_ne!(joint.revisit_steps, joint.retry_revisit_steps);
+    let (map, poses, report) = learn_jointly(&samples, reader(), TagMapConfig::default(), &joint);
+    println!("{report:?}");
+    assert!(report.diverged, "{report:?}");
+    assert!(!report.retried, "{report:?}");
+    assert_odometry_fallback(&samples, &map, &poses, &report);
+}
+
+/// On [`short_run`] with the [`credulous`] settings the first attempt (no revisit rule) leaves
+/// the odometry by 0.47 m, beyond the 0.3 m bound; the retry with the rule stays within 0.10 m
+/// of it and is what is returned: flagged as retried, not diverged, the same result as an
+/// attempt with the rule alone, and closer to the truth than the odometry.
+#[test]
+fn a_diverged_first_attempt_is_retried_with_the_revisit_rule() {
+    let (run, truth, odo) = short_run();
+    let samples: Vec<_> = run
+        .iter()
+        .map(|o| &o.snapshot)
+        .zip(odo.iter().copied())
+        .collect();
+    let joint = credulous();
+    let (odo_mean, odo_worst) = errors(&odo, &truth);
+    assert!(
+        odo_worst < joint.max_drift_m,
+        "the bound should hold for this odometry ({odo_worst} m)"
+    );
+    let (map, poses, report) = learn_jointly(&samples, reader(), TagMapConfig::default(), &joint);
+    let (mean, worst) = errors(&poses, &truth);
+    println!(
+        "odometry error mean {odo_mean:.3} m, worst {odo_worst:.3} m; learned {mean:.3} m, \
+         {worst:.3} m; {report:?}"
+    );
+    assert!(report.retried, "{report:?}");
+    assert!(!report.diverged, "{report:?}");
+    assert!(report.max_correction_m <= joint.max_drift_m, "{report:?}");
+    assert!(mean < odo_mean && worst < odo_worst, "{mean} {worst}");
+    // The retry is the attempt with the revisit rule, as if it had been the only one.
+    let rule = JointConfig {
+        revisit_steps: joint.retry_revisit_steps,
+        ..joint
+    };
+    let (alone_map, alone, alone_report) =
+        learn_jointly(&samples, reader(), TagMapConfig::default(), &rule);
+    assert!(!alone_report.diverged && !alone_report.retried);
+    assert_eq!(poses, alone);
+    assert_eq!(map.tags, alone_map.tags);
+    assert_eq!(
+        JointReport {
+            retried: false,
+            ..report
+        },
+        alone_report
+    );
+}
+
+/// The first attempt of the test above with the retry turned off (`retry_revisit_steps` equal
+/// to `revisit_steps`): nothing else is tried, the result is the odometry.
+#[test]
+fn no_retry_when_the_retry_setting_is_the_same() {
+    let (run, _, odo) = short_run();
+    let samples: Vec<_> = run
+        .iter()
+        .map(|o| &o.snapshot)
+        .zip(odo.iter().copied())
+        .collect();
+    let joint = JointConfig {
+        retry_revisit_steps: 0,
+        ..credulous()
+    };
+    let (map, poses, report) = learn_jointly(&samples, reader(), TagMapConfig::default(), &joint);
+    println!("{report:?}");
+    assert!(report.diverged, "{report:?}");
+    assert!(!report.retried, "{report:?}");
+    assert_odometry_fallback(&samples, &map, &poses, &report);
 }
