@@ -189,7 +189,7 @@ impl Graph<'_> {
             };
             let e = relative_residual(a, b, u);
             let (ja, jb) = relative_jacobians(a, b);
-            n.add_pair(i, i + 1, &ja, &jb, &(*info), &e);
+            n.add_pair(i, i + 1, &ja, &jb, info, &e);
         }
         for (i, f) in self.factors.iter().enumerate().skip(1) {
             let (Some(f), Some(p)) = (f, poses.get(i)) else {

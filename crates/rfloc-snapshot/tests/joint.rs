@@ -98,7 +98,8 @@ fn late_error(poses: &[Pose2], truth: &[Pose2]) -> f64 {
 
 /// A 7 m square at the seed's tag density, 2000 exploration steps, odometry that drifts by
 /// 0.8 m: the map along the odometry is off by about 0.2 m (median), the joint one stays within
-/// 0.12 m of the truth, and the poses late in the run stay as good as the map.
+/// 0.04 m of the truth (0.028 m measured with the pose-graph rounds, 0.050 m before them), and
+/// the poses late in the run stay as good as the map.
 #[test]
 fn joint_learning_keeps_the_map_consistent_on_a_drifting_path() {
     let world = World::square(21, 7.0, 32.0, 0.05);
@@ -130,9 +131,9 @@ fn joint_learning_keeps_the_map_consistent_on_a_drifting_path() {
         "the test needs a drifting odometry ({drift} m)"
     );
     assert!(plain_tags > 0.15, "odometry map {plain_tags} m");
-    assert!(joint_tags < 0.12, "joint map {joint_tags} m");
+    assert!(joint_tags < 0.04, "joint map {joint_tags} m");
     assert!(late_odo > 0.25, "odometry late {late_odo} m");
-    assert!(late_joint < 0.12, "joint late {late_joint} m");
+    assert!(late_joint < 0.05, "joint late {late_joint} m");
     assert!(joint.len() + 20 >= plain.len());
     assert!(report.factors > 1500, "{report:?}");
 }
@@ -192,9 +193,8 @@ fn short_run() -> (Vec<rfloc_snapshot::Observation>, Vec<Pose2>, Vec<Pose2>) {
 }
 
 /// The settings for [`short_run`]: a flat drift bound of 0.3 m (its odometry stays within
-/// 0.18 m of the truth), and no pose-graph rounds: the run is shorter than `closure_gap`
-/// (200 steps), so it has no closures, and pose-graph rounds without closures only put the
-/// trajectory back on the odometry chain.
+/// 0.18 m of the truth), and no pose-graph rounds (the measurements below were taken without
+/// them; with them the short run has only a handful of closures).
 fn short_run_joint() -> JointConfig {
     JointConfig {
         closure_rounds: 0,
@@ -351,4 +351,46 @@ fn no_retry_when_the_retry_setting_is_the_same() {
     assert!(report.diverged, "{report:?}");
     assert!(!report.retried, "{report:?}");
     assert_odometry_fallback(&samples, &map, &poses, &report);
+}
+
+/// The pose-graph rounds keep what the rounds corrected: after a false 1 m lurch in the
+/// odometry at step 80 of the short run, the few closures between visits (poses at least
+/// `closure_gap` apart) and the odometry leave the trajectory as close to the truth as the
+/// rounds alone did, instead of putting it back on the odometry (which they did when the
+/// closures had to be 200 steps apart: none in 160 steps, mean error 0.50 m).
+#[test]
+fn pose_graph_rounds_keep_the_rounds_corrections_on_a_short_run() {
+    let (run, truth, odo) = short_run();
+    let odo = with_slip(&odo, 80, Pose2::new(1.0, 0.0, 0.0));
+    let samples: Vec<_> = run
+        .iter()
+        .map(|o| &o.snapshot)
+        .zip(odo.iter().copied())
+        .collect();
+    let learn = |j: JointConfig| {
+        let j = JointConfig {
+            max_drift_m: 10.0,
+            ..j
+        };
+        let (_, poses, report) = learn_jointly(&samples, reader(), TagMapConfig::default(), &j);
+        (errors(&poses, &truth), report)
+    };
+    let ((rounds_mean, _), _) = learn(JointConfig {
+        closure_rounds: 0,
+        ..JointConfig::default()
+    });
+    let ((graph_mean, _), report) = learn(JointConfig::default());
+    let (odo_mean, _) = errors(&odo, &truth);
+    println!(
+        "mean error: odometry {odo_mean:.3} m, rounds {rounds_mean:.3} m, with pose-graph \
+         rounds {graph_mean:.3} m ({} closures)",
+        report.closures
+    );
+    assert!(odo_mean > 0.4, "the test needs the lurch ({odo_mean} m)");
+    assert!(report.closures > 0, "{report:?}");
+    assert!(graph_mean < 0.2, "{graph_mean} m");
+    assert!(
+        graph_mean <= rounds_mean + 0.01,
+        "{graph_mean} vs {rounds_mean} m"
+    );
 }

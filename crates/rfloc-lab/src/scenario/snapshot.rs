@@ -913,6 +913,7 @@ pub async fn run_trial(
     );
     rec.metric("joint_learning_s", joint_s);
     rec.metric("joint_relocks", joint_report.relocks as f64);
+    rec.metric("joint_closures", joint_report.closures as f64);
     rec.metric(
         "joint_diverged",
         if joint_report.diverged { 1.0 } else { 0.0 },
