@@ -42,7 +42,6 @@ fn config() -> JointConfig {
     env("min_mapped", &mut c.min_mapped);
     env("relock_after", &mut c.relock_after);
     env("anchor_steps", &mut c.anchor_steps);
-    env("anchor_sigma", &mut c.anchor_sigma);
     env("max_drift_m", &mut c.max_drift_m);
     env("max_drift_rel", &mut c.max_drift_rel);
     env("revisit_steps", &mut c.revisit_steps);

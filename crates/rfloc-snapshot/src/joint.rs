@@ -40,8 +40,7 @@
 //!   rotate and shift together as the loops demand, and every tag is placed again.
 //! - **Frame.** Finally poses and tags are moved rigidly so that the first
 //!   [`JointConfig::anchor_steps`] poses lie on their odometry (the frame of a live robot's
-//!   start), in a least-squares fit that weighs each pose by how far the odometry noise model
-//!   lets the odometry have drifted by then (and [`JointConfig::anchor_sigma`]).
+//!   start).
 //!
 //! Units: metres, radians.
 
@@ -94,11 +93,8 @@ pub struct JointConfig {
     pub gauss_newton: usize,
     /// After this many factors rejected in a row, the next one is taken (the pose is lost).
     pub relock_after: usize,
-    /// The learned frame is the one in which the first this many poses lie on their odometry
-    /// (weighted by how far the odometry noise model lets the odometry have drifted by each).
+    /// The learned frame is the one in which the first this many poses lie on their odometry.
     pub anchor_steps: usize,
-    /// σ of a learned pose as a frame reference, added to the odometry's (m).
-    pub anchor_sigma: f64,
     /// The odometry is assumed to drift by at most this plus this fraction of the distance
     /// driven (m, 1); a trajectory further away has diverged.
     pub max_drift_m: f64,
@@ -151,8 +147,7 @@ impl Default for JointConfig {
             min_tag_reads: 6,
             gauss_newton: 6,
             gate: 4.0,
-            anchor_steps: 300,
-            anchor_sigma: 0.06,
+            anchor_steps: 50,
             relock_after: 25,
             max_drift_m: 1.0,
             max_drift_rel: 0.02,
@@ -383,18 +378,20 @@ fn learn_attempt(
         }
         report.rounds += 1;
     }
-    // The frame: the rigid motion that puts the first `anchor_steps` poses on their odometry,
-    // each weighted by how far the odometry can have drifted by then (its own noise model,
-    // accumulated from the start) plus `anchor_sigma` for the pose's error, applied to the
-    // poses and the tags.
+    // The frame: the rigid motion that puts the first `anchor_steps` poses on their odometry
+    // (which has not drifted yet there), applied to the poses and the tags.
+    // The first poses where the final map puts them (their factors), against their odometry.
     let m = joint.anchor_steps.clamp(1, n);
-    let weights = anchor_weights(odometry.get(..m).unwrap_or(&[]), joint);
-    if m >= 3 {
-        let frame = align(
-            poses.get(..m).unwrap_or(&[]),
-            odometry.get(..m).unwrap_or(&[]),
-            &weights,
-        );
+    let map = mapper.build(&located);
+    let (mut placed, mut believed) = (Vec::new(), Vec::new());
+    for ((p, o), s) in poses.iter().zip(&odometry).zip(&snapshots).take(m) {
+        if let Some(f) = factor(&map, &map.observe(s), p, joint, &mut work) {
+            placed.push(f.mean);
+            believed.push(*o);
+        }
+    }
+    if placed.len() >= 3 {
+        let frame = align(&placed, &believed);
         for q in &mut poses {
             *q = frame.compose(q);
         }
@@ -529,74 +526,33 @@ fn filter_steps(
     }
 }
 
-/// Weights of the first odometry poses as a frame reference: `1 / (σ_a² + σ_k²)`, with `σ_a`
-/// [`JointConfig::anchor_sigma`] and `σ_k` the position error the odometry noise model allows
-/// at pose `k` (each increment's translation noise, and its rotation noise times the lever arm
-/// to pose `k`, summed as variances).
-fn anchor_weights(odometry: &[Pose2], joint: &JointConfig) -> Vec<f64> {
-    let noise: Vec<(f64, f64)> = odometry
-        .windows(2)
-        .filter_map(|w| {
-            let (a, b) = (w.first()?, w.get(1)?);
-            let u = b.relative_to(a);
-            let d = u.x.hypot(u.y);
-            Some((
-                joint.odo_trans_abs + joint.odo_trans_rel * d,
-                joint.odo_rot_abs
-                    + joint.odo_rot_rel * angle_diff(b.theta, a.theta).abs()
-                    + joint.odo_rot_per_m * d,
-            ))
-        })
-        .collect();
-    let floor = joint.anchor_sigma * joint.anchor_sigma;
-    odometry
-        .iter()
-        .enumerate()
-        .map(|(k, pk)| {
-            let var: f64 = odometry
-                .iter()
-                .zip(&noise)
-                .take(k)
-                .map(|(pi, (st, sr))| {
-                    let lever = pk.distance(pi);
-                    st * st + (lever * sr) * (lever * sr)
-                })
-                .sum();
-            1.0 / (floor + var).max(1e-12)
-        })
-        .collect()
-}
-
-/// The rigid motion `T` (as a pose) that minimises `Σ w_i |T ∘ from_i − to_i|²` over the
-/// positions, with the rotation taken from the positions when they spread more than 0.5 m,
-/// otherwise from the weighted mean heading difference.
-fn align(from: &[Pose2], to: &[Pose2], weights: &[f64]) -> Pose2 {
-    let total: f64 = weights.iter().take(from.len().min(to.len())).sum();
-    let k = if total > 0.0 { total } else { 1.0 };
+/// The rigid motion `T` (as a pose) that minimises `Σ |T ∘ from_i − to_i|²` over the positions,
+/// with the rotation taken from the positions when they spread more than 0.5 m, otherwise from
+/// the mean heading difference.
+fn align(from: &[Pose2], to: &[Pose2]) -> Pose2 {
+    #[allow(clippy::cast_precision_loss)]
+    let k = from.len().max(1) as f64;
     let mean = |v: &[Pose2]| {
-        v.iter().zip(weights).fold((0.0, 0.0), |(x, y), (p, w)| {
-            (x + w * p.x / k, y + w * p.y / k)
-        })
+        (
+            v.iter().map(|p| p.x).sum::<f64>() / k,
+            v.iter().map(|p| p.y).sum::<f64>() / k,
+        )
     };
     let ((fx, fy), (tx, ty)) = (mean(from), mean(to));
     let (mut sxx, mut sxy, mut spread) = (0.0, 0.0, 0.0_f64);
-    for ((a, b), w) in from.iter().zip(to).zip(weights) {
+    for (a, b) in from.iter().zip(to) {
         let (ax, ay, bx, by) = (a.x - fx, a.y - fy, b.x - tx, b.y - ty);
-        sxx += w * (ax * bx + ay * by);
-        sxy += w * (ax * by - ay * bx);
+        sxx += ax * bx + ay * by;
+        sxy += ax * by - ay * bx;
         spread = spread.max(ax.hypot(ay));
     }
     let theta = if spread > 0.5 {
         sxy.atan2(sxx)
     } else {
-        let (s, c) = from
-            .iter()
-            .zip(to)
-            .zip(weights)
-            .fold((0.0, 0.0), |(s, c), ((a, b), w)| {
-                let d = angle_diff(b.theta, a.theta);
-                (s + w * d.sin(), c + w * d.cos())
-            });
+        let (s, c) = from.iter().zip(to).fold((0.0, 0.0), |(s, c), (a, b)| {
+            let d = angle_diff(b.theta, a.theta);
+            (s + d.sin(), c + d.cos())
+        });
         f64::atan2(s, c)
     };
     let (s, c) = theta.sin_cos();
