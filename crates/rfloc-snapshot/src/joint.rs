@@ -48,10 +48,11 @@ use nalgebra::{Matrix3, Vector3};
 use rfloc_pose::{angle_diff, Pose2};
 use serde::{Deserialize, Serialize};
 
-use crate::posegraph::{relative_jacobians, Closure, Graph, PoseFactor as Factor};
+use crate::posegraph::{factor_error, relative_jacobians, Closure, Graph, PoseFactor as Factor};
 use crate::snapshot::Snapshot;
 use crate::tagmap::{
-    LikelihoodScratch, MapObservation, MappedTag, Mapper, ReadModel, TagMap, TagMapConfig,
+    LikelihoodScratch, MapObservation, MappedTag, Mapper, PoseIndex, ReadModel, TagMap,
+    TagMapConfig,
 };
 
 /// Settings of the joint learning.
@@ -305,12 +306,9 @@ fn learn_attempt(
                 }
             }
         }
-        for (k, (slot, hit)) in located.iter_mut().zip(&affected).enumerate() {
-            if *hit {
-                let warm = slot.as_ref().map(|t| (t.x, t.y));
-                *slot = mapper.locate_tag(k, &index, warm).or(slot.take());
-            }
-        }
+        place_again(&mapper, &index, &mut located, |k| {
+            affected.get(k).copied().unwrap_or(false)
+        });
         report.chunks += 1;
         start = end;
     }
@@ -320,11 +318,7 @@ fn learn_attempt(
     for round in 0..joint.rounds {
         let before = poses.clone();
         smooth(&mut poses, &increments, &odo_info, &factors, joint);
-        let index = mapper.index(&poses);
-        for (k, slot) in located.iter_mut().enumerate() {
-            let warm = slot.as_ref().map(|t| (t.x, t.y));
-            *slot = mapper.locate_tag(k, &index, warm).or(slot.take());
-        }
+        place_again(&mapper, &mapper.index(&poses), &mut located, |_| true);
         report.rounds += 1;
         #[allow(clippy::cast_precision_loss)]
         {
@@ -371,11 +365,7 @@ fn learn_attempt(
             huber: joint.huber,
         }
         .optimise(&mut poses, joint.gauss_newton);
-        let index = mapper.index(&poses);
-        for (k, slot) in located.iter_mut().enumerate() {
-            let warm = slot.as_ref().map(|t| (t.x, t.y));
-            *slot = mapper.locate_tag(k, &index, warm).or(slot.take());
-        }
+        place_again(&mapper, &mapper.index(&poses), &mut located, |_| true);
         report.rounds += 1;
     }
     // The frame: the rigid motion that puts the first `anchor_steps` poses on their odometry
@@ -699,6 +689,22 @@ fn moments(
     Some((m, 0.5 * (cov + cov.transpose())))
 }
 
+/// Places again the tags `k` with `which(k)` from the poses of `index`, each searched around
+/// its last position (kept where the search finds nothing).
+fn place_again(
+    mapper: &Mapper<'_>,
+    index: &PoseIndex,
+    located: &mut [Option<MappedTag>],
+    which: impl Fn(usize) -> bool,
+) {
+    for (k, slot) in located.iter_mut().enumerate() {
+        if which(k) {
+            let warm = slot.as_ref().map(|t| (t.x, t.y));
+            *slot = mapper.locate_tag(k, index, warm).or(slot.take());
+        }
+    }
+}
+
 /// The factor of every pose on `map`, kept when within the gate of the pose.
 fn gated_factors(
     map: &TagMap,
@@ -711,11 +717,7 @@ fn gated_factors(
     let gate = joint.gate * joint.gate;
     for ((slot, p), s) in factors.iter_mut().zip(poses).zip(snapshots) {
         *slot = factor(map, &map.observe(s), p, joint, work).filter(|f| {
-            let e = Vector3::new(
-                f.mean.x - p.x,
-                f.mean.y - p.y,
-                angle_diff(f.mean.theta, p.theta),
-            );
+            let e = factor_error(p, f);
             (e.transpose() * f.info * e).x <= gate
         });
     }

@@ -82,8 +82,8 @@ fn huber(e: &Vector3<f64>, info: &Matrix3<f64>, k: f64) -> (f64, f64) {
     }
 }
 
-/// Residual of a unary factor.
-fn factor_error(p: &Pose2, f: &PoseFactor) -> Vector3<f64> {
+/// Residual of a unary factor (the pose minus the factor's mean).
+pub(crate) fn factor_error(p: &Pose2, f: &PoseFactor) -> Vector3<f64> {
     Vector3::new(
         p.x - f.mean.x,
         p.y - f.mean.y,
@@ -409,71 +409,33 @@ mod tests {
         }
     }
 
-    #[test]
-    fn block_tridiagonal_solve_matches_dense() {
-        // A random symmetric positive definite block-tridiagonal system of 4 blocks.
-        let mut r = lcg(7);
-        let m = 4;
-        let off: Vec<Matrix3<f64>> = (0..m - 1).map(|_| Matrix3::from_fn(|_, _| r())).collect();
-        let diag: Vec<Matrix3<f64>> = (0..m)
-            .map(|_| {
-                let a = Matrix3::from_fn(|_, _| r());
-                a * a.transpose() + Matrix3::identity() * 5.0
-            })
-            .collect();
-        let g: Vec<Vector3<f64>> = (0..m).map(|_| Vector3::from_fn(|_, _| r())).collect();
-        let x = BlockTridiagonal::factor(&diag, &off)
-            .and_then(|f| f.solve(&g))
-            .unwrap_or_default();
-        let mut dense = nalgebra::DMatrix::<f64>::zeros(3 * m, 3 * m);
-        for i in 0..m {
-            dense.view_mut((3 * i, 3 * i), (3, 3)).copy_from(&diag[i]);
-            if i + 1 < m {
-                dense
-                    .view_mut((3 * i, 3 * i + 3), (3, 3))
-                    .copy_from(&off[i]);
-                dense
-                    .view_mut((3 * i + 3, 3 * i), (3, 3))
-                    .copy_from(&off[i].transpose());
-            }
-        }
-        let rhs = nalgebra::DVector::from_iterator(3 * m, g.iter().flat_map(|v| v.iter().copied()));
-        let want = dense
-            .lu()
-            .solve(&rhs)
-            .unwrap_or_else(|| nalgebra::DVector::zeros(3 * m));
-        assert_eq!(x.len(), m);
-        for i in 0..m {
-            for k in 0..3 {
-                assert!((x[i][k] - want[3 * i + k]).abs() < 1e-9, "{i} {k}");
-            }
-        }
-    }
-
-    #[test]
-    fn conjugate_gradients_match_a_dense_solve_with_closures() {
-        // Normal equations of a chain with three long-range blocks, solved by the
-        // preconditioned conjugate gradients and by a dense LU.
-        let mut r = lcg(11);
-        let m = 12;
-        let mut n = NormalEquations {
+    /// Random normal equations of `m` poses: symmetric positive definite diagonal blocks
+    /// (`ridge` on their diagonal), random chain blocks and gradient, and random blocks between
+    /// the pairs `cross`.
+    fn random_system(seed: u32, m: usize, ridge: f64, cross: &[(usize, usize)]) -> NormalEquations {
+        let mut r = lcg(seed);
+        NormalEquations {
             diag: (0..m)
                 .map(|_| {
                     let a = Matrix3::from_fn(|_, _| r());
-                    a * a.transpose() + Matrix3::identity() * 6.0
+                    a * a.transpose() + Matrix3::identity() * ridge
                 })
                 .collect(),
             off: (0..m - 1).map(|_| Matrix3::from_fn(|_, _| r())).collect(),
-            cross: Vec::new(),
             grad: (0..m).map(|_| Vector3::from_fn(|_, _| r())).collect(),
-        };
-        for (a, b) in [(1, 7), (2, 11), (4, 9)] {
-            n.cross.push((a, b, Matrix3::from_fn(|_, _| r())));
+            cross: cross
+                .iter()
+                .map(|&(a, b)| (a, b, Matrix3::from_fn(|_, _| r())))
+                .collect(),
         }
-        let x = n.solve(0.0).unwrap_or_default();
+    }
+
+    /// `n`'s solution by a dense LU decomposition of the whole matrix.
+    fn dense_solution(n: &NormalEquations) -> Vec<Vector3<f64>> {
+        let m = n.diag.len();
         let mut dense = nalgebra::DMatrix::<f64>::zeros(3 * m, 3 * m);
-        for i in 0..m {
-            dense.view_mut((3 * i, 3 * i), (3, 3)).copy_from(&n.diag[i]);
+        for (i, d) in n.diag.iter().enumerate() {
+            dense.view_mut((3 * i, 3 * i), (3, 3)).copy_from(d);
         }
         let mut put = |a: usize, b: usize, blk: &Matrix3<f64>| {
             dense.view_mut((3 * a, 3 * b), (3, 3)).copy_from(blk);
@@ -489,16 +451,46 @@ mod tests {
         }
         let rhs =
             nalgebra::DVector::from_iterator(3 * m, n.grad.iter().flat_map(|v| v.iter().copied()));
-        let want = dense
+        let x = dense
             .lu()
             .solve(&rhs)
             .unwrap_or_else(|| nalgebra::DVector::zeros(3 * m));
-        assert_eq!(x.len(), m);
-        for i in 0..m {
+        (0..m)
+            .map(|i| Vector3::new(x[3 * i], x[3 * i + 1], x[3 * i + 2]))
+            .collect()
+    }
+
+    fn assert_close(x: &[Vector3<f64>], want: &[Vector3<f64>], tolerance: f64) {
+        assert_eq!(x.len(), want.len());
+        for (i, (a, b)) in x.iter().zip(want).enumerate() {
             for k in 0..3 {
-                assert!((x[i][k] - want[3 * i + k]).abs() < 1e-6, "{i} {k}");
+                assert!(
+                    (a[k] - b[k]).abs() < tolerance,
+                    "{i} {k}: {} vs {}",
+                    a[k],
+                    b[k]
+                );
             }
         }
+    }
+
+    #[test]
+    fn block_tridiagonal_solve_matches_dense() {
+        // A random symmetric positive definite block-tridiagonal system of 4 blocks.
+        let n = random_system(7, 4, 5.0, &[]);
+        let x = BlockTridiagonal::factor(&n.diag, &n.off)
+            .and_then(|f| f.solve(&n.grad))
+            .unwrap_or_default();
+        assert_close(&x, &dense_solution(&n), 1e-9);
+    }
+
+    #[test]
+    fn conjugate_gradients_match_a_dense_solve_with_closures() {
+        // Normal equations of a chain with three long-range blocks, solved by the
+        // preconditioned conjugate gradients and by a dense LU.
+        let n = random_system(11, 12, 6.0, &[(1, 7), (2, 11), (4, 9)]);
+        let x = n.solve(0.0).unwrap_or_default();
+        assert_close(&x, &dense_solution(&n), 1e-6);
     }
 
     #[test]

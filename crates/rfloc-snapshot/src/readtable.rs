@@ -42,14 +42,18 @@ const TILE: usize = 16;
 /// Nodes per tile side (a tile holds the nodes on its far edges too).
 const TILE_NODES: usize = TILE + 1;
 
-/// Nearest integer of `x` (ties to even) for `|x| < 2⁵¹`, by adding and subtracting 1.5·2⁵²
-/// (the baseline x86-64 target has no rounding instruction, and the library call is slow).
+/// 1.5·2⁵²: adding it to `x` (`|x| < 2⁵¹`) rounds `x` to the nearest integer (ties to even),
+/// which the sum holds in its low mantissa bits; subtracting it again gives that integer.
+pub(crate) const ROUND_MAGIC: f64 = 6_755_399_441_055_744.0;
+
+/// Nearest integer of `x` (ties to even) for `|x| < 2⁵¹`, by adding and subtracting
+/// [`ROUND_MAGIC`] (the baseline x86-64 target has no rounding instruction, and the library
+/// call is slow).
 #[inline]
 #[must_use]
 pub(crate) fn round_f64(x: f64) -> f64 {
-    const MAGIC: f64 = 6_755_399_441_055_744.0;
     if x.abs() < 2_251_799_813_685_248.0 {
-        (x + MAGIC) - MAGIC
+        (x + ROUND_MAGIC) - ROUND_MAGIC
     } else {
         x
     }
@@ -73,9 +77,8 @@ pub(crate) fn floor_f64(x: f64) -> f64 {
 /// weight 1, which interpolates to the same value.
 #[inline]
 fn lower_node(f: f64) -> (usize, f32) {
-    const MAGIC: f64 = 6_755_399_441_055_744.0;
-    let r = (f - 0.5) + MAGIC;
-    let node = r - MAGIC;
+    let r = (f - 0.5) + ROUND_MAGIC;
+    let node = r - ROUND_MAGIC;
     #[allow(clippy::cast_possible_truncation)]
     let w = ((f - node) as f32).clamp(0.0, 1.0);
     #[allow(clippy::cast_possible_truncation)]

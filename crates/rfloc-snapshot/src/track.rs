@@ -20,6 +20,7 @@ use rfloc_pose::{angle_diff, wrap_angle, Pose2};
 use serde::{Deserialize, Serialize};
 
 use crate::distance::{postings, IndexedSnapshot, Shared, SnapshotDistance, TagIndex};
+use crate::readtable::ROUND_MAGIC;
 use crate::snapshot::Snapshot;
 use crate::tagmap::{LikelihoodScratch, TagMap};
 
@@ -260,14 +261,13 @@ fn compose(p: &Pose2, dx: f64, dy: f64, dth: f64) -> Pose2 {
 #[inline]
 #[must_use]
 pub(crate) fn exp(x: f64) -> f64 {
-    const MAGIC: f64 = 6_755_399_441_055_744.0;
     // ln 2 split (fdlibm's `ln2HI`, `ln2LO`): the high part has 32 significant bits.
     const LN2_HI: f64 = f64::from_bits(0x3FE6_2E42_FEE0_0000);
     const LN2_LO: f64 = f64::from_bits(0x3DEA_39EF_3579_3C76);
     let xc = x.clamp(-707.0, 709.8);
     // k = round(x / ln 2); 1.5·2⁵² + k holds k in its low mantissa bits.
-    let kb = xc * std::f64::consts::LOG2_E + MAGIC;
-    let k = kb - MAGIC;
+    let kb = xc * std::f64::consts::LOG2_E + ROUND_MAGIC;
+    let k = kb - ROUND_MAGIC;
     // `k · LN2_HI` is exact (|k| ≤ 1024).
     let r = (xc - k * LN2_HI) - k * LN2_LO;
     let mut p = 1.0 / 6_227_020_800.0;
@@ -291,7 +291,7 @@ pub(crate) fn exp(x: f64) -> f64 {
     // 2^(k − 1) (k ≥ −1020 here), times 2 after the product so that k = 1024 still works.
     let bits = kb
         .to_bits()
-        .wrapping_sub(MAGIC.to_bits())
+        .wrapping_sub(ROUND_MAGIC.to_bits())
         .wrapping_add(1022)
         << 52;
     let y = p * f64::from_bits(bits) * 2.0;
