@@ -296,6 +296,18 @@ impl Summary {
 mod tests {
     use super::*;
 
+    /// A successful trial without pose errors or goal time, with these extra metrics.
+    fn with_extras(extra: &[(&str, f64)]) -> TrialResult {
+        TrialResult {
+            trial: 0,
+            seed: 0,
+            errors: None,
+            time_to_goal: None,
+            success: true,
+            extra: extra.iter().map(|(k, v)| ((*k).to_string(), *v)).collect(),
+        }
+    }
+
     /// The summary's extra metric `k` (the test fails when it is missing).
     fn extra(s: &Summary, k: &str) -> f64 {
         s.extra
@@ -357,16 +369,8 @@ mod tests {
 
     #[test]
     fn nees_is_pooled_over_trials_with_its_chi2_band() {
-        let r = |nees: f64, dof: f64| TrialResult {
-            trial: 0,
-            seed: 0,
-            errors: None,
-            time_to_goal: None,
-            success: true,
-            extra: vec![
-                ("beacon_nees_per_dof".into(), nees),
-                ("beacon_nees_dof".into(), dof),
-            ],
+        let r = |nees: f64, dof: f64| {
+            with_extras(&[("beacon_nees_per_dof", nees), ("beacon_nees_dof", dof)])
         };
         let s = Summary::from_trials(&[r(1.0, 8.0), r(2.5, 2.0)]);
         let get = |k: &str| extra(&s, k);
@@ -379,17 +383,12 @@ mod tests {
 
     #[test]
     fn correlated_nees_terms_widen_the_band_to_their_effective_dof() {
-        let r = |nees: f64, dof: f64, eff: f64| TrialResult {
-            trial: 0,
-            seed: 0,
-            errors: None,
-            time_to_goal: None,
-            success: true,
-            extra: vec![
-                ("beacon_nees_per_dof".into(), nees),
-                ("beacon_nees_dof".into(), dof),
-                ("beacon_nees_eff_dof".into(), eff),
-            ],
+        let r = |nees: f64, dof: f64, eff: f64| {
+            with_extras(&[
+                ("beacon_nees_per_dof", nees),
+                ("beacon_nees_dof", dof),
+                ("beacon_nees_eff_dof", eff),
+            ])
         };
         // Two trials of 20 dof whose terms behave like 5 independent ones each: Var = 2·(400/5)
         // per trial, pooled h = 40² / 160 = 10, the band of χ²(10) / 10.

@@ -10,7 +10,9 @@ use common::{explore, World};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rfloc_pose::Pose2;
-use rfloc_snapshot::{learn_jointly, JointConfig, JointReport, ReadModel, TagMap, TagMapConfig};
+use rfloc_snapshot::{
+    learn_jointly, JointConfig, JointReport, Observation, ReadModel, Snapshot, TagMap, TagMapConfig,
+};
 
 /// Odometry of a true path: each true increment with relative noise and a slowly wandering
 /// heading error (what wheel slip does to a differential drive).
@@ -45,11 +47,17 @@ fn reader() -> ReadModel {
     }
 }
 
+/// The exploration's snapshots, each with the pose the robot believed (`poses`).
+fn pairs<'a>(run: &'a [Observation], poses: &[Pose2]) -> Vec<(&'a Snapshot, Pose2)> {
+    run.iter()
+        .map(|o| &o.snapshot)
+        .zip(poses.iter().copied())
+        .collect()
+}
+
 /// The map learned along `samples`' poses and the one learned jointly with the path, with the
 /// same reader model ([`reader`]): (along, joint, joint poses, report).
-fn learn_both(
-    samples: &[(&rfloc_snapshot::Snapshot, Pose2)],
-) -> (TagMap, TagMap, Vec<Pose2>, rfloc_snapshot::JointReport) {
+fn learn_both(samples: &[(&Snapshot, Pose2)]) -> (TagMap, TagMap, Vec<Pose2>, JointReport) {
     let model = reader();
     let plain = TagMap::learn(
         samples.iter().copied(),
@@ -111,11 +119,7 @@ fn joint_learning_keeps_the_map_consistent_on_a_drifting_path() {
         .zip(&odo)
         .map(|(a, b)| a.distance(b))
         .fold(0.0, f64::max);
-    let samples: Vec<_> = run
-        .iter()
-        .map(|o| &o.snapshot)
-        .zip(odo.iter().copied())
-        .collect();
+    let samples = pairs(&run, &odo);
     let (plain, joint, poses, report) = learn_both(&samples);
     let (plain_tags, joint_tags) = (tag_error(&plain, &world), tag_error(&joint, &world));
     let (late_odo, late_joint) = (late_error(&odo, &truth), late_error(&poses, &truth));
@@ -145,11 +149,7 @@ fn joint_learning_keeps_an_exact_odometry() {
     let world = World::square(31, 5.0, 32.0, 0.05);
     let run = explore(&world, 800, 0.1, 32);
     let truth: Vec<Pose2> = run.iter().map(|o| o.pose).collect();
-    let samples: Vec<_> = run
-        .iter()
-        .map(|o| &o.snapshot)
-        .zip(truth.iter().copied())
-        .collect();
+    let samples = pairs(&run, &truth);
     let (plain, joint, poses, report) = learn_both(&samples);
     let pose_error = median(
         poses
@@ -184,7 +184,7 @@ fn with_slip(odo: &[Pose2], k: usize, slip: Pose2) -> Vec<Pose2> {
 
 /// A short exploration: 160 steps in a 4 m square at the seed's tag density, and its odometry
 /// with a slowly wandering heading (within 0.18 m of the truth). (run, truth, odometry)
-fn short_run() -> (Vec<rfloc_snapshot::Observation>, Vec<Pose2>, Vec<Pose2>) {
+fn short_run() -> (Vec<Observation>, Vec<Pose2>, Vec<Pose2>) {
     let world = World::square(41, 4.0, 32.0, 0.05);
     let run = explore(&world, 160, 0.1, 42);
     let truth: Vec<Pose2> = run.iter().map(|o| o.pose).collect();
@@ -217,15 +217,15 @@ fn errors(poses: &[Pose2], truth: &[Pose2]) -> (f64, f64) {
     )
 }
 
-/// A divergent result is the odometry and the map placed along it.
-fn assert_odometry_fallback(
-    samples: &[(&rfloc_snapshot::Snapshot, Pose2)],
-    map: &TagMap,
-    poses: &[Pose2],
-    report: &JointReport,
-) {
+/// Learns `samples` with `joint`, which must diverge without a retry that converges: the
+/// result is flagged diverged, not retried, and is the odometry and the map placed along it.
+fn assert_learns_the_odometry(samples: &[(&Snapshot, Pose2)], joint: &JointConfig) {
+    let (map, poses, report) = learn_jointly(samples, reader(), TagMapConfig::default(), joint);
+    println!("{report:?}");
+    assert!(report.diverged, "{report:?}");
+    assert!(!report.retried, "{report:?}");
     let odo: Vec<Pose2> = samples.iter().map(|(_, p)| *p).collect();
-    assert_eq!(poses, odo.as_slice());
+    assert_eq!(poses, odo);
     assert_eq!(report.max_correction_m, 0.0, "{report:?}");
     assert_eq!(report.mean_correction_m, 0.0, "{report:?}");
     let along = TagMap::learn(samples.iter().copied(), reader(), TagMapConfig::default());
@@ -271,18 +271,10 @@ fn both_attempts_diverging_give_the_odometry() {
         worst > 0.9,
         "the slip should put the odometry off ({worst} m)"
     );
-    let samples: Vec<_> = run
-        .iter()
-        .map(|o| &o.snapshot)
-        .zip(odo.iter().copied())
-        .collect();
+    let samples = pairs(&run, &odo);
     let joint = short_run_joint();
     assert_ne!(joint.revisit_steps, joint.retry_revisit_steps);
-    let (map, poses, report) = learn_jointly(&samples, reader(), TagMapConfig::default(), &joint);
-    println!("{report:?}");
-    assert!(report.diverged, "{report:?}");
-    assert!(!report.retried, "{report:?}");
-    assert_odometry_fallback(&samples, &map, &poses, &report);
+    assert_learns_the_odometry(&samples, &joint);
 }
 
 /// On [`short_run`] with the [`credulous`] settings the first attempt (no revisit rule) leaves
@@ -292,11 +284,7 @@ fn both_attempts_diverging_give_the_odometry() {
 #[test]
 fn a_diverged_first_attempt_is_retried_with_the_revisit_rule() {
     let (run, truth, odo) = short_run();
-    let samples: Vec<_> = run
-        .iter()
-        .map(|o| &o.snapshot)
-        .zip(odo.iter().copied())
-        .collect();
+    let samples = pairs(&run, &odo);
     let joint = credulous();
     let (odo_mean, odo_worst) = errors(&odo, &truth);
     assert!(
@@ -337,20 +325,12 @@ fn a_diverged_first_attempt_is_retried_with_the_revisit_rule() {
 #[test]
 fn no_retry_when_the_retry_setting_is_the_same() {
     let (run, _, odo) = short_run();
-    let samples: Vec<_> = run
-        .iter()
-        .map(|o| &o.snapshot)
-        .zip(odo.iter().copied())
-        .collect();
+    let samples = pairs(&run, &odo);
     let joint = JointConfig {
         retry_revisit_steps: 0,
         ..credulous()
     };
-    let (map, poses, report) = learn_jointly(&samples, reader(), TagMapConfig::default(), &joint);
-    println!("{report:?}");
-    assert!(report.diverged, "{report:?}");
-    assert!(!report.retried, "{report:?}");
-    assert_odometry_fallback(&samples, &map, &poses, &report);
+    assert_learns_the_odometry(&samples, &joint);
 }
 
 /// The pose-graph rounds keep what the rounds corrected: after a false 1 m lurch in the
@@ -362,11 +342,7 @@ fn no_retry_when_the_retry_setting_is_the_same() {
 fn pose_graph_rounds_keep_the_rounds_corrections_on_a_short_run() {
     let (run, truth, odo) = short_run();
     let odo = with_slip(&odo, 80, Pose2::new(1.0, 0.0, 0.0));
-    let samples: Vec<_> = run
-        .iter()
-        .map(|o| &o.snapshot)
-        .zip(odo.iter().copied())
-        .collect();
+    let samples = pairs(&run, &odo);
     let learn = |j: JointConfig| {
         let j = JointConfig {
             max_drift_m: 10.0,
