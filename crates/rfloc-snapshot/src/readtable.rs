@@ -191,6 +191,116 @@ pub(crate) fn miss_term(model: &ReadModel, floor: f64, m: f64) -> f64 {
         .max(-floor)
 }
 
+/// The arguments of [`ReadTable::add_reads`], for the run-time choice of instructions.
+struct AddReads<'a> {
+    table: &'a ReadTable,
+    tags: &'a [(f32, f32, f32)],
+    inv_sigma: f32,
+    floor: f32,
+    reads_only: bool,
+    poses: &'a PoseLanes,
+    scratch: &'a mut ReadScratch,
+    acc: &'a mut [f32],
+    terms: &'a mut [f32],
+}
+
+impl pulp::WithSimd for AddReads<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) {
+        self.table.add_reads_here(
+            self.tags,
+            self.inv_sigma,
+            self.floor,
+            self.reads_only,
+            self.poses,
+            self.scratch,
+            self.acc,
+            self.terms,
+        );
+    }
+}
+
+/// Read tags handled per pass over the poses (their terms are added in the tags' order).
+const TAGS_PER_PASS: usize = 4;
+
+/// What one pass of [`ReadTable::add_reads`] over the poses needs besides the tags.
+struct Pass<'a> {
+    table: &'a ReadTable,
+    /// `−½ / σ²`.
+    scale: f32,
+    floor: f32,
+    reads_only: bool,
+    poses: &'a PoseLanes,
+}
+
+impl Pass<'_> {
+    /// Adds the terms of `K` read tags to every pose: the tags in each antenna's frame as
+    /// table cells (vectorised), the table's entries there (scalar), the terms (vectorised).
+    /// `cells` and `gathered` are scratch of at least `K` times the poses.
+    #[inline(always)]
+    fn run<const K: usize>(
+        &self,
+        tags: &[(f32, f32, f32); K],
+        cells: &mut [u32],
+        gathered: &mut [[f32; 2]],
+        acc: &mut [f32],
+        in_view: &mut [u32],
+    ) {
+        let n = acc.len();
+        let p = self.poses;
+        let (pc, ps, pu, pv) = (&p.c[..n], &p.s[..n], &p.u[..n], &p.v[..n]);
+        for (&(tx, ty, _), out) in tags.iter().zip(cells.chunks_exact_mut(n)) {
+            let out = &mut out[..n];
+            for i in 0..n {
+                let (c, s, u, v) = (pc[i], ps[i], pu[i], pv[i]);
+                out[i] = ReadTable::cell(c * tx + s * ty + u, c * ty - s * tx + v);
+            }
+        }
+        // The index is below the table's size by construction.
+        let table: &[[f32; 2]; TABLE_N * TABLE_N] = &self.table.cells;
+        for (g, &i) in gathered.iter_mut().zip(&cells[..K * n]) {
+            *g = table[i as usize & (TABLE_N * TABLE_N - 1)];
+        }
+        let (scale, floor) = (self.scale, self.floor);
+        let term = |r: f32, g: [f32; 2]| {
+            let d = r - g[0];
+            let t = d * d * scale;
+            if t > -floor {
+                t
+            } else {
+                -floor
+            }
+        };
+        let mut rows = gathered.chunks_exact(n);
+        let g: [&[[f32; 2]]; K] = std::array::from_fn(|_| rows.next().unwrap_or(&[]));
+        let g = g.map(|rows| &rows[..n]);
+        if self.reads_only {
+            for (i, a) in acc.iter_mut().enumerate() {
+                let mut sum = *a;
+                for (&(_, _, r), rows) in tags.iter().zip(&g) {
+                    sum += term(r, rows[i]);
+                }
+                *a = sum;
+            }
+        } else {
+            let in_view = &mut in_view[..n];
+            for (i, a) in acc.iter_mut().enumerate() {
+                let (mut sum, mut seen) = (*a, in_view[i]);
+                for (&(_, _, r), rows) in tags.iter().zip(&g) {
+                    let h = rows[i];
+                    // The read tag's Gaussian term replaces the miss term the field counted.
+                    sum += term(r, h) - h[1];
+                    // The sign bit marks a tag in view.
+                    seen += h[1].to_bits() >> 31;
+                }
+                (*a, in_view[i]) = (sum, seen);
+            }
+        }
+    }
+}
+
 impl ReadTable {
     /// Tabulates `model` with terms floored at `−floor`.
     #[must_use]
@@ -283,8 +393,38 @@ impl ReadTable {
     /// Gaussian term replaces the miss term `v` the field counted) and `terms += 1` unless the
     /// field counted it already (in view). With `reads_only`, nothing is subtracted and every
     /// read tag is a term (no field was added). Two tags per pass over the poses.
+    ///
+    /// The loops run in the widest vector instructions the CPU has (chosen at run time); the
+    /// operations and their order are the same in every variant, so are the results.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn add_reads(
+        &self,
+        tags: &[(f32, f32, f32)],
+        inv_sigma: f32,
+        floor: f32,
+        reads_only: bool,
+        poses: &PoseLanes,
+        scratch: &mut ReadScratch,
+        acc: &mut [f32],
+        terms: &mut [f32],
+    ) {
+        pulp::Arch::new().dispatch(AddReads {
+            table: self,
+            tags,
+            inv_sigma,
+            floor,
+            reads_only,
+            poses,
+            scratch,
+            acc,
+            terms,
+        });
+    }
+
+    /// [`ReadTable::add_reads`] in the instructions of the caller's context.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn add_reads_here(
         &self,
         tags: &[(f32, f32, f32)],
         inv_sigma: f32,
@@ -302,77 +442,28 @@ impl ReadTable {
             in_view,
         } = scratch;
         cells.clear();
-        cells.resize(2 * n, 0);
+        cells.resize(TAGS_PER_PASS * n, 0);
         gathered.clear();
-        gathered.resize(2 * n, [0.0; 2]);
+        gathered.resize(TAGS_PER_PASS * n, [0.0; 2]);
         in_view.clear();
         in_view.resize(n, 0);
-        // `t = −½ z²` as `d² · k`.
-        let scale = -0.5 * inv_sigma * inv_sigma;
-        let lanes = || {
-            poses
-                .c
-                .iter()
-                .zip(&poses.s)
-                .zip(poses.u.iter().zip(&poses.v))
+        let pass = Pass {
+            table: self,
+            // `t = −½ z²` as `d² · k`.
+            scale: -0.5 * inv_sigma * inv_sigma,
+            floor,
+            reads_only,
+            poses,
         };
-        let term = |r: f32, g: [f32; 2]| {
-            let d = r - g[0];
-            let t = d * d * scale;
-            if t > -floor {
-                t
-            } else {
-                -floor
-            }
-        };
-        for pair in tags.chunks(2) {
-            let &[(ax, ay, ra), ..] = pair else { continue };
-            // A lone last tag is paired with a copy of itself whose terms are not added.
-            let (bx, by, rb) = pair.get(1).copied().unwrap_or((ax, ay, ra));
-            let two = pair.len() == 2;
-            // Both tags in each antenna's frame, as table cells (vectorised).
-            let (ca, cb) = cells.split_at_mut(n);
-            for ((ia, ib), ((&c, &s), (&u, &v))) in ca.iter_mut().zip(cb.iter_mut()).zip(lanes()) {
-                *ia = Self::cell(c * ax + s * ay + u, c * ay - s * ax + v);
-                *ib = Self::cell(c * bx + s * by + u, c * by - s * bx + v);
-            }
-            // Gather (scalar; the index is below the table's size by construction).
-            let m = if two { 2 * n } else { n };
-            for (g, &i) in gathered[..m].iter_mut().zip(&cells[..m]) {
-                *g = self.cells[i as usize & (TABLE_N * TABLE_N - 1)];
-            }
-            let (ga, gb) = gathered.split_at(n);
-            // Terms (vectorised).
-            let rows = acc
-                .iter_mut()
-                .zip(in_view.iter_mut())
-                .zip(ga.iter().zip(gb));
-            match (reads_only, two) {
-                (true, true) => {
-                    for ((a, _), (&g, &h)) in rows {
-                        *a += term(ra, g);
-                        *a += term(rb, h);
-                    }
-                }
-                (true, false) => {
-                    for ((a, _), (&g, _)) in rows {
-                        *a += term(ra, g);
-                    }
-                }
-                (false, true) => {
-                    for ((a, k), (&g, &h)) in rows {
-                        *a += term(ra, g) - g[1];
-                        *a += term(rb, h) - h[1];
-                        // The sign bit marks a tag in view.
-                        *k += (g[1].to_bits() >> 31) + (h[1].to_bits() >> 31);
-                    }
-                }
-                (false, false) => {
-                    for ((a, k), (&g, _)) in rows {
-                        *a += term(ra, g) - g[1];
-                        *k += g[1].to_bits() >> 31;
-                    }
-                }
+        for chunk in tags.chunks(TAGS_PER_PASS) {
+            let (cells, gathered) = (&mut cells[..], &mut gathered[..]);
+            let (acc, in_view) = (&mut acc[..n], &mut in_view[..]);
+            match *chunk {
+                [a, b, c, d] => pass.run(&[a, b, c, d], cells, gathered, acc, in_view),
+                [a, b, c] => pass.run(&[a, b, c], cells, gathered, acc, in_view),
+                [a, b] => pass.run(&[a, b], cells, gathered, acc, in_view),
+                [a] => pass.run(&[a], cells, gathered, acc, in_view),
+                _ => {}
             }
         }
         #[allow(clippy::cast_precision_loss)]
@@ -798,6 +889,72 @@ mod tests {
         assert!(field.computed_tiles() < field.tile_count());
         field.compute_all();
         assert_eq!(field.computed_tiles(), field.tile_count());
+    }
+
+    /// `add_reads` (in whatever instructions this CPU has, four tags per pass) against a plain
+    /// loop over poses and tags in the baseline instructions: the same bits, for every number
+    /// of tags modulo the pass, with and without the field, poses on and off the table.
+    #[test]
+    fn add_reads_equals_a_plain_loop_bit_for_bit() {
+        use rand::{Rng, SeedableRng};
+        let model = ReadModel::seed000(1000.0, 2);
+        let table = ReadTable::new(&model, 6.0);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let (inv_sigma, floor) = (1.0 / 45.0_f32, 6.0_f32);
+        let scale = -0.5 * inv_sigma * inv_sigma;
+        let mut scratch = ReadScratch::default();
+        for (count, reads_only) in (0..11).flat_map(|c| [(c, false), (c, true)]) {
+            let mut poses = PoseLanes::default();
+            let n = 37;
+            poses.reset(n);
+            for i in 0..n {
+                let (s, c) = sincos_f32(rng.random_range(-4.0..4.0));
+                let (x, y) = (rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0));
+                [poses.c[i], poses.s[i], poses.u[i], poses.v[i]] = PoseLanes::lane(x, y, c, s);
+            }
+            let tags: Vec<(f32, f32, f32)> = (0..count)
+                .map(|_| {
+                    (
+                        rng.random_range(-2.0..2.0),
+                        rng.random_range(-2.0..2.0),
+                        rng.random_range(500.0..2500.0),
+                    )
+                })
+                .collect();
+            let padded = poses.c.len();
+            let acc0: Vec<f32> = (0..padded).map(|_| rng.random_range(-30.0..0.0)).collect();
+            let terms0: Vec<f32> = (0..padded).map(|_| rng.random_range(0.0..20.0)).collect();
+            let (mut acc, mut terms) = (acc0.clone(), terms0.clone());
+            table.add_reads(
+                &tags,
+                inv_sigma,
+                floor,
+                reads_only,
+                &poses,
+                &mut scratch,
+                &mut acc,
+                &mut terms,
+            );
+            for i in 0..padded {
+                let (mut a, mut seen) = (acc0[i], 0_u32);
+                for &(tx, ty, r) in &tags {
+                    let (c, s, u, v) = (poses.c[i], poses.s[i], poses.u[i], poses.v[i]);
+                    let cell = ReadTable::cell(c * tx + s * ty + u, c * ty - s * tx + v) & 0xFFFF;
+                    let g = table.cells[cell as usize];
+                    let d = r - g[0];
+                    let t = (d * d * scale).max(-floor);
+                    if reads_only {
+                        a += t;
+                    } else {
+                        a += t - g[1];
+                        seen += u32::from(g[1] < 0.0);
+                    }
+                }
+                let k = terms0[i] + (count as f32 - seen as f32);
+                assert_eq!(acc[i].to_bits(), a.to_bits(), "{count} tags, pose {i}");
+                assert_eq!(terms[i].to_bits(), k.to_bits(), "{count} tags, pose {i}");
+            }
+        }
     }
 
     #[test]
