@@ -31,6 +31,7 @@ pub mod lattice;
 pub mod navigate;
 mod posegraph;
 mod readtable;
+mod simd;
 pub mod state_set;
 pub mod store;
 pub mod survey;

@@ -98,13 +98,39 @@ pub(crate) fn sincos_f32(theta: f64) -> (f32, f32) {
     let r2 = r * r;
     let s = r * (1.0 + r2 * (-1.0 / 6.0 + r2 * (1.0 / 120.0 + r2 * (-1.0 / 5040.0))));
     let c = 1.0 + r2 * (-0.5 + r2 * (1.0 / 24.0 + r2 * (-1.0 / 720.0 + r2 * (1.0 / 40320.0))));
-    #[allow(clippy::cast_possible_truncation)]
-    match (q as i64) & 3 {
-        0 => (s, c),
-        1 => (c, -s),
-        2 => (-s, -c),
-        _ => (-c, s),
+    to_quadrant(q, s, c)
+}
+
+/// Floats whose sign bit can be flipped and that can be chosen between without branches.
+pub(crate) trait Bits: Copy {
+    /// `self`, negated when `flip`.
+    fn negated_if(self, flip: bool) -> Self;
+}
+
+impl Bits for f32 {
+    #[inline]
+    fn negated_if(self, flip: bool) -> Self {
+        f32::from_bits(self.to_bits() ^ (u32::from(flip) << 31))
     }
+}
+
+impl Bits for f64 {
+    #[inline]
+    fn negated_if(self, flip: bool) -> Self {
+        f64::from_bits(self.to_bits() ^ (u64::from(flip) << 63))
+    }
+}
+
+/// `(sin θ, cos θ)` from `(sin r, cos r)` with `θ = r + q·π/2` (`q` an integer below 2⁵¹ in
+/// magnitude): `(s, c)`, `(c, −s)`, `(−s, −c)`, `(−c, s)` for `q mod 4 = 0, 1, 2, 3`. Without
+/// branches or float-to-integer conversions, so that loops over poses vectorise: `q + 1.5·2⁵²`
+/// holds `2⁵¹ + q` in its low mantissa bits, and 2⁵¹ is a multiple of 4.
+#[inline]
+pub(crate) fn to_quadrant<T: Bits>(q: f64, s: T, c: T) -> (T, T) {
+    let k = (q + ROUND_MAGIC).to_bits();
+    let swap = k & 1 != 0;
+    let (a, b) = if swap { (c, s) } else { (s, c) };
+    (a.negated_if(k & 2 != 0), b.negated_if((k + 1) & 2 != 0))
 }
 
 /// Antenna poses of many robot poses in single precision, pre-rotated and pre-scaled to table
@@ -189,37 +215,6 @@ pub(crate) fn miss_term(model: &ReadModel, floor: f64, m: f64) -> f64 {
         .max(1e-300)
         .ln()
         .max(-floor)
-}
-
-/// The arguments of [`ReadTable::add_reads`], for the run-time choice of instructions.
-struct AddReads<'a> {
-    table: &'a ReadTable,
-    tags: &'a [(f32, f32, f32)],
-    inv_sigma: f32,
-    floor: f32,
-    reads_only: bool,
-    poses: &'a PoseLanes,
-    scratch: &'a mut ReadScratch,
-    acc: &'a mut [f32],
-    terms: &'a mut [f32],
-}
-
-impl pulp::WithSimd for AddReads<'_> {
-    type Output = ();
-
-    #[inline(always)]
-    fn with_simd<S: pulp::Simd>(self, _: S) {
-        self.table.add_reads_here(
-            self.tags,
-            self.inv_sigma,
-            self.floor,
-            self.reads_only,
-            self.poses,
-            self.scratch,
-            self.acc,
-            self.terms,
-        );
-    }
 }
 
 /// Read tags handled per pass over the poses (their terms are added in the tags' order).
@@ -408,17 +403,14 @@ impl ReadTable {
         acc: &mut [f32],
         terms: &mut [f32],
     ) {
-        pulp::Arch::new().dispatch(AddReads {
-            table: self,
-            tags,
-            inv_sigma,
-            floor,
-            reads_only,
-            poses,
-            scratch,
-            acc,
-            terms,
-        });
+        crate::simd::widest(
+            #[inline(always)]
+            || {
+                self.add_reads_here(
+                    tags, inv_sigma, floor, reads_only, poses, scratch, acc, terms,
+                );
+            },
+        );
     }
 
     /// [`ReadTable::add_reads`] in the instructions of the caller's context.
@@ -954,6 +946,27 @@ mod tests {
                 assert_eq!(acc[i].to_bits(), a.to_bits(), "{count} tags, pose {i}");
                 assert_eq!(terms[i].to_bits(), k.to_bits(), "{count} tags, pose {i}");
             }
+        }
+    }
+
+    #[test]
+    fn quadrants_without_branches() {
+        let (s, c) = (0.25_f64, -0.75_f64);
+        for q in -9_i64..=9 {
+            let want = match q.rem_euclid(4) {
+                0 => (s, c),
+                1 => (c, -s),
+                2 => (-s, -c),
+                _ => (-c, s),
+            };
+            #[allow(clippy::cast_precision_loss)]
+            let got = to_quadrant(q as f64, s, c);
+            assert_eq!(got, want, "{q}");
+            #[allow(clippy::cast_precision_loss, clippy::cast_possible_truncation)]
+            let got32 = to_quadrant(q as f64, s as f32, c as f32);
+            #[allow(clippy::cast_possible_truncation)]
+            let want32 = (want.0 as f32, want.1 as f32);
+            assert_eq!(got32, want32, "{q}");
         }
     }
 

@@ -209,6 +209,8 @@ const BLOCK: usize = 256;
 /// Work buffers of [`TagMap::log_likelihoods`] (kept between calls to avoid allocating).
 #[derive(Debug, Clone, Default)]
 pub struct LikelihoodScratch {
+    /// Per pose of a block: the antenna's position and its heading's sine and cosine.
+    antenna: Vec<(f64, f64, f32, f32)>,
     poses: PoseLanes,
     acc: Vec<f32>,
     terms: Vec<f32>,
@@ -479,6 +481,7 @@ impl TagMap {
         };
         let table = field.table();
         let LikelihoodScratch {
+            antenna,
             poses: lanes,
             acc,
             terms,
@@ -507,26 +510,29 @@ impl TagMap {
                 v.clear();
                 v.resize(lanes.c.len(), 0.0);
             }
-            // Antenna poses (relative to the first pose, in single precision, pre-rotated and
-            // scaled to table cells) and the field.
-            let slots = lanes
-                .c
-                .iter_mut()
-                .zip(lanes.s.iter_mut())
-                .zip(lanes.u.iter_mut().zip(lanes.v.iter_mut()))
-                .zip(acc.iter_mut().zip(terms.iter_mut()));
-            for (p, (((pc, ps), (pu, pv)), (a, k))) in block.iter().zip(slots) {
-                let (s, c) = sincos_f32(p.theta);
-                let ax = p.x + f64::from(c) * off;
-                let ay = p.y + f64::from(s) * off;
-                let (sum, count) = if reads_only {
-                    (0.0, 0.0)
-                } else {
-                    field.sample(ax, ay, p.theta)
-                };
-                [*pc, *ps, *pu, *pv] = PoseLanes::lane(ax - ox, ay - oy, c, s);
-                *a = sum;
-                *k = count;
+            // Antenna poses, and as lanes (relative to the first pose, in single precision,
+            // pre-rotated and scaled to table cells): loops that vectorise.
+            crate::simd::widest(|| {
+                antenna.clear();
+                antenna.extend(block.iter().map(|p| {
+                    let (s, c) = sincos_f32(p.theta);
+                    (p.x + f64::from(c) * off, p.y + f64::from(s) * off, c, s)
+                }));
+                let slots = lanes
+                    .c
+                    .iter_mut()
+                    .zip(lanes.s.iter_mut())
+                    .zip(lanes.u.iter_mut().zip(lanes.v.iter_mut()));
+                for (&(ax, ay, c, s), ((pc, ps), (pu, pv))) in antenna.iter().zip(slots) {
+                    [*pc, *ps, *pu, *pv] = PoseLanes::lane(ax - ox, ay - oy, c, s);
+                }
+            });
+            // The field at each antenna pose.
+            if !reads_only {
+                let slots = acc.iter_mut().zip(terms.iter_mut());
+                for ((&(ax, ay, _, _), p), (a, k)) in antenna.iter().zip(block).zip(slots) {
+                    (*a, *k) = field.sample(ax, ay, p.theta);
+                }
             }
             table.add_reads(
                 &tags, inv_sigma, floor, reads_only, lanes, reads, acc, terms,

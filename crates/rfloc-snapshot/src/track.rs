@@ -342,13 +342,7 @@ pub(crate) fn sincos(theta: f64) -> (f64, f64) {
                     + r2 * (1.0 / 40_320.0
                         + r2 * (-1.0 / 3_628_800.0
                             + r2 * (1.0 / 479_001_600.0 + r2 * (-1.0 / 87_178_291_200.0)))))));
-    #[allow(clippy::cast_possible_truncation)]
-    match (q as i64) & 3 {
-        0 => (s, c),
-        1 => (c, -s),
-        2 => (-s, -c),
-        _ => (-c, s),
-    }
+    crate::readtable::to_quadrant(q, s, c)
 }
 
 impl TrackFilter {
@@ -550,9 +544,11 @@ impl TrackFilter {
         }
         // How well the cloud explains the snapshot: weighted per-term likelihood.
         // Both exponentials first (a loop that vectorises), then the sums in order.
-        for (ll, terms) in &mut scores {
-            (*ll, *terms) = (exp(*ll / terms.max(1.0)), exp(*ll - best));
-        }
+        crate::simd::widest(|| {
+            for (ll, terms) in &mut scores {
+                (*ll, *terms) = (exp(*ll / terms.max(1.0)), exp(*ll - best));
+            }
+        });
         let mut explained = 0.0;
         for (w, (per_term, relative)) in self.weights.iter_mut().zip(&scores) {
             explained += *w * per_term;
@@ -655,10 +651,13 @@ impl TrackFilter {
             cy = sy / sw;
         }
         let (wx, wy, mass) = window?;
+        // Every particle's heading sine and cosine first (a loop that vectorises), then the
+        // sums over the window in order.
+        let trig: Vec<(f64, f64)> =
+            crate::simd::widest(|| self.poses.iter().map(|p| sincos(p.theta)).collect());
         let (mut ss, mut sc) = (0.0, 0.0);
-        for (p, w) in self.poses.iter().zip(&self.weights) {
+        for ((p, w), (s, c)) in self.poses.iter().zip(&self.weights).zip(trig) {
             if (p.x - wx).powi(2) + (p.y - wy).powi(2) <= r2 {
-                let (s, c) = sincos(p.theta);
                 ss += w * s;
                 sc += w * c;
             }
