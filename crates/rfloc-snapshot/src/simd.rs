@@ -6,8 +6,8 @@
 //! gives the same bits (`readtable`'s tests compare the two).
 
 /// Runs `f` with the widest vector instructions this CPU has. `f` should be a loop over many
-/// items that the compiler vectorises; what it calls should be `#[inline]` so that it is
-/// compiled in the same context.
+/// items that the compiler vectorises, marked `#[inline(always)]` (a closure that is not
+/// inlined into the variant is compiled for the baseline only), and what it calls `#[inline]`.
 #[inline]
 pub(crate) fn widest<R>(f: impl FnOnce() -> R) -> R {
     pulp::Arch::new().dispatch(Run(f))

@@ -224,7 +224,7 @@ pub struct TagMap {
     pub config: TagMapConfig,
     pub tags: Vec<MappedTag>,
     #[serde(skip)]
-    index: BTreeMap<TagId, usize>,
+    index: HashMap<TagId, usize>,
     /// The model's table and the miss field of these tags (shared by clones; built by
     /// [`TagMap::rebuild_index`]).
     #[serde(skip)]
@@ -277,7 +277,7 @@ impl TagMap {
             model,
             config,
             tags,
-            index: BTreeMap::new(),
+            index: HashMap::new(),
             field: None,
         };
         map.rebuild_index();
@@ -512,21 +512,24 @@ impl TagMap {
             }
             // Antenna poses, and as lanes (relative to the first pose, in single precision,
             // pre-rotated and scaled to table cells): loops that vectorise.
-            crate::simd::widest(|| {
-                antenna.clear();
-                antenna.extend(block.iter().map(|p| {
-                    let (s, c) = sincos_f32(p.theta);
-                    (p.x + f64::from(c) * off, p.y + f64::from(s) * off, c, s)
-                }));
-                let slots = lanes
-                    .c
-                    .iter_mut()
-                    .zip(lanes.s.iter_mut())
-                    .zip(lanes.u.iter_mut().zip(lanes.v.iter_mut()));
-                for (&(ax, ay, c, s), ((pc, ps), (pu, pv))) in antenna.iter().zip(slots) {
-                    [*pc, *ps, *pu, *pv] = PoseLanes::lane(ax - ox, ay - oy, c, s);
-                }
-            });
+            crate::simd::widest(
+                #[inline(always)]
+                || {
+                    antenna.clear();
+                    antenna.extend(block.iter().map(|p| {
+                        let (s, c) = sincos_f32(p.theta);
+                        (p.x + f64::from(c) * off, p.y + f64::from(s) * off, c, s)
+                    }));
+                    let slots = lanes
+                        .c
+                        .iter_mut()
+                        .zip(lanes.s.iter_mut())
+                        .zip(lanes.u.iter_mut().zip(lanes.v.iter_mut()));
+                    for (&(ax, ay, c, s), ((pc, ps), (pu, pv))) in antenna.iter().zip(slots) {
+                        [*pc, *ps, *pu, *pv] = PoseLanes::lane(ax - ox, ay - oy, c, s);
+                    }
+                },
+            );
             // The field at each antenna pose.
             if !reads_only {
                 let slots = acc.iter_mut().zip(terms.iter_mut());
@@ -659,7 +662,7 @@ impl<'a> Mapper<'a> {
             model: self.model.clone(),
             config: self.config,
             tags: tags.collect(),
-            index: BTreeMap::new(),
+            index: HashMap::new(),
             field: None,
         };
         map.rebuild_with(self.table.clone());

@@ -544,11 +544,14 @@ impl TrackFilter {
         }
         // How well the cloud explains the snapshot: weighted per-term likelihood.
         // Both exponentials first (a loop that vectorises), then the sums in order.
-        crate::simd::widest(|| {
-            for (ll, terms) in &mut scores {
-                (*ll, *terms) = (exp(*ll / terms.max(1.0)), exp(*ll - best));
-            }
-        });
+        crate::simd::widest(
+            #[inline(always)]
+            || {
+                for (ll, terms) in &mut scores {
+                    (*ll, *terms) = (exp(*ll / terms.max(1.0)), exp(*ll - best));
+                }
+            },
+        );
         let mut explained = 0.0;
         for (w, (per_term, relative)) in self.weights.iter_mut().zip(&scores) {
             explained += *w * per_term;
@@ -653,8 +656,10 @@ impl TrackFilter {
         let (wx, wy, mass) = window?;
         // Every particle's heading sine and cosine first (a loop that vectorises), then the
         // sums over the window in order.
-        let trig: Vec<(f64, f64)> =
-            crate::simd::widest(|| self.poses.iter().map(|p| sincos(p.theta)).collect());
+        let trig: Vec<(f64, f64)> = crate::simd::widest(
+            #[inline(always)]
+            || self.poses.iter().map(|p| sincos(p.theta)).collect(),
+        );
         let (mut ss, mut sc) = (0.0, 0.0);
         for ((p, w), (s, c)) in self.poses.iter().zip(&self.weights).zip(trig) {
             if (p.x - wx).powi(2) + (p.y - wy).powi(2) <= r2 {
