@@ -239,6 +239,16 @@ impl Clone for TrackFilter {
             scores: Vec::new(),
         }
     }
+
+    /// Takes `source`'s state and keeps this filter's work buffers and allocations.
+    fn clone_from(&mut self, source: &Self) {
+        self.config = source.config;
+        self.poses.clone_from(&source.poses);
+        self.weights.clone_from(&source.weights);
+        self.initialised = source.initialised;
+        self.w_fast = source.w_fast;
+        self.w_slow = source.w_slow;
+    }
 }
 
 /// One standard normal draw (ziggurat).
