@@ -1,5 +1,8 @@
 //! Times the parts of one particle-filter update on the tag map (seed 000's world, 1000
-//! particles): `cargo run --release -p rfloc-snapshot --example track_profile`.
+//! particles): `cargo run --release -p rfloc-snapshot --example track_profile`. Each part:
+//! mean wall and CPU time per call, and the best of 20 batches (on a shared machine the least
+//! disturbed; compare builds by running them alternately). `ONLY=estimate` (a name prefix)
+//! times one part, longer, for a profiler such as `perf record`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 #[path = "../benches/problems.rs"]
