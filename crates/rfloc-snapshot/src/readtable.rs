@@ -387,7 +387,7 @@ impl ReadTable {
     /// origin as the poses) read with RSS `r`, `acc += max(−½((r − m)/σ)², −floor) − v` (its
     /// Gaussian term replaces the miss term `v` the field counted) and `terms += 1` unless the
     /// field counted it already (in view). With `reads_only`, nothing is subtracted and every
-    /// read tag is a term (no field was added). Two tags per pass over the poses.
+    /// read tag is a term (no field was added). Four tags per pass over the poses.
     ///
     /// The loops run in the widest vector instructions the CPU has (chosen at run time); the
     /// operations and their order are the same in every variant, so are the results.
