@@ -3,14 +3,35 @@
 //!
 //! Only plain floating-point code runs this way: Rust never fuses a multiply and an add on its
 //! own, and the operations and their order are the same in every variant, so every variant
-//! gives the same bits (`readtable`'s tests compare the two).
+//! gives the same bits (`add_reads_equals_a_plain_loop_bit_for_bit` and
+//! `widest_instructions_give_the_same_bits_as_the_baseline` compare them).
 
 /// Runs `f` with the widest vector instructions this CPU has. `f` should be a loop over many
 /// items that the compiler vectorises, marked `#[inline(always)]` (a closure that is not
 /// inlined into the variant is compiled for the baseline only), and what it calls `#[inline]`.
 #[inline]
 pub(crate) fn widest<R>(f: impl FnOnce() -> R) -> R {
+    #[cfg(test)]
+    if BASELINE.with(std::cell::Cell::get) {
+        return f();
+    }
     pulp::Arch::new().dispatch(Run(f))
+}
+
+#[cfg(test)]
+thread_local! {
+    /// Set by [`on_baseline`]: `widest` runs its loops as compiled for the baseline.
+    static BASELINE: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Runs `f` with every [`widest`] loop (on this thread) in the baseline instructions (tests
+/// compare the two).
+#[cfg(test)]
+pub(crate) fn on_baseline<R>(f: impl FnOnce() -> R) -> R {
+    BASELINE.with(|b| b.set(true));
+    let out = f();
+    BASELINE.with(|b| b.set(false));
+    out
 }
 
 struct Run<F>(F);

@@ -812,6 +812,73 @@ mod tests {
         ])
     }
 
+    /// The filter on a tag map, run once with its loops in the widest instructions this CPU has
+    /// and once in the baseline ones: the same particles, weights and estimates, bit for bit.
+    #[test]
+    fn widest_instructions_give_the_same_bits_as_the_baseline() {
+        use crate::tagmap::{MappedTag, ReadModel, TagMap, TagMapConfig};
+        let model = ReadModel::seed000(1000.0, 2);
+        let tags: Vec<MappedTag> = (0..400)
+            .map(|i| MappedTag {
+                id: TagId::new(vec![(i >> 8) as u8, (i & 0xff) as u8]),
+                x: 0.125 + 0.25 * f64::from(i % 20),
+                y: 0.125 + 0.25 * f64::from(i / 20),
+                sigma: 0.05,
+                reads: 1,
+            })
+            .collect();
+        let map = TagMap::from_tags(model.clone(), TagMapConfig::default(), tags.clone());
+        let snapshot_at = |pose: &Pose2| {
+            let a = model.antenna(pose);
+            Snapshot::from_reads(tags.iter().filter_map(|t| {
+                let m = model.mean_rss_from(&a, t.x, t.y);
+                (m >= model.threshold).then(|| (t.id.clone(), m))
+            }))
+        };
+        let samples: Vec<(Snapshot, Pose2)> = (0..64)
+            .map(|i| {
+                let p = Pose2::new(
+                    0.5 + 0.5 * f64::from(i % 8),
+                    0.5 + 0.5 * f64::from(i / 8),
+                    0.4 * f64::from(i),
+                );
+                (snapshot_at(&p), p)
+            })
+            .collect();
+        let prints = FingerprintMap::new(
+            samples.iter().map(|(s, p)| (s, *p)),
+            SnapshotDistance::RssL1,
+        );
+        let run = || {
+            let mut rng = ChaCha8Rng::seed_from_u64(9);
+            let mut f = TrackFilter::new(TrackConfig {
+                particles: 300,
+                ..TrackConfig::default()
+            });
+            let mut truth = Pose2::new(1.2, 1.5, 0.3);
+            let step = Pose2::new(0.08, 0.0, 0.05);
+            let mut out = Vec::new();
+            for _ in 0..12 {
+                truth = truth.compose(&step);
+                f.predict(&step, &mut rng);
+                let snapshot = snapshot_at(&truth);
+                assert!(snapshot.len() >= 10, "{} tags read", snapshot.len());
+                f.update_with_map(&map, &prints, &snapshot, &mut rng);
+                let e = f.estimate().unwrap();
+                out.extend([e.pose.x, e.pose.y, e.pose.theta, e.spread, e.mass]);
+                out.extend(e.covariance.iter().copied());
+                let (poses, weights) = f.particles();
+                out.extend(poses.iter().flat_map(|p| [p.x, p.y, p.theta]));
+                out.extend(weights.iter().copied());
+            }
+            out.into_iter().map(f64::to_bits).collect::<Vec<u64>>()
+        };
+        let widest = run();
+        let baseline = crate::simd::on_baseline(run);
+        assert_eq!(widest.len(), baseline.len());
+        assert!(widest == baseline, "the variants differ");
+    }
+
     #[test]
     fn tracks_a_path_with_odometry_after_global_initialisation() {
         // Fingerprints on a 0.25 m grid, four headings.
