@@ -406,66 +406,47 @@ impl ReadTable {
         crate::simd::widest(
             #[inline(always)]
             || {
-                self.add_reads_here(
-                    tags, inv_sigma, floor, reads_only, poses, scratch, acc, terms,
-                );
+                let n = poses.c.len();
+                let ReadScratch {
+                    cells,
+                    gathered,
+                    in_view,
+                } = scratch;
+                cells.clear();
+                cells.resize(TAGS_PER_PASS * n, 0);
+                gathered.clear();
+                gathered.resize(TAGS_PER_PASS * n, [0.0; 2]);
+                in_view.clear();
+                in_view.resize(n, 0);
+                let pass = Pass {
+                    table: self,
+                    // `t = −½ z²` as `d² · k`.
+                    scale: -0.5 * inv_sigma * inv_sigma,
+                    floor,
+                    reads_only,
+                    poses,
+                };
+                for chunk in tags.chunks(TAGS_PER_PASS) {
+                    let (cells, gathered) = (&mut cells[..], &mut gathered[..]);
+                    let (acc, in_view) = (&mut acc[..n], &mut in_view[..]);
+                    match *chunk {
+                        [a, b, c, d] => pass.run(&[a, b, c, d], cells, gathered, acc, in_view),
+                        [a, b, c] => pass.run(&[a, b, c], cells, gathered, acc, in_view),
+                        [a, b] => pass.run(&[a, b], cells, gathered, acc, in_view),
+                        [a] => pass.run(&[a], cells, gathered, acc, in_view),
+                        _ => {}
+                    }
+                }
+                #[allow(clippy::cast_precision_loss)]
+                let read = tags.len() as f32;
+                for (k, &seen) in terms.iter_mut().zip(in_view.iter()) {
+                    #[allow(clippy::cast_precision_loss)]
+                    {
+                        *k += read - seen as f32;
+                    }
+                }
             },
         );
-    }
-
-    /// [`ReadTable::add_reads`] in the instructions of the caller's context.
-    #[allow(clippy::too_many_arguments)]
-    #[inline(always)]
-    fn add_reads_here(
-        &self,
-        tags: &[(f32, f32, f32)],
-        inv_sigma: f32,
-        floor: f32,
-        reads_only: bool,
-        poses: &PoseLanes,
-        scratch: &mut ReadScratch,
-        acc: &mut [f32],
-        terms: &mut [f32],
-    ) {
-        let n = poses.c.len();
-        let ReadScratch {
-            cells,
-            gathered,
-            in_view,
-        } = scratch;
-        cells.clear();
-        cells.resize(TAGS_PER_PASS * n, 0);
-        gathered.clear();
-        gathered.resize(TAGS_PER_PASS * n, [0.0; 2]);
-        in_view.clear();
-        in_view.resize(n, 0);
-        let pass = Pass {
-            table: self,
-            // `t = −½ z²` as `d² · k`.
-            scale: -0.5 * inv_sigma * inv_sigma,
-            floor,
-            reads_only,
-            poses,
-        };
-        for chunk in tags.chunks(TAGS_PER_PASS) {
-            let (cells, gathered) = (&mut cells[..], &mut gathered[..]);
-            let (acc, in_view) = (&mut acc[..n], &mut in_view[..]);
-            match *chunk {
-                [a, b, c, d] => pass.run(&[a, b, c, d], cells, gathered, acc, in_view),
-                [a, b, c] => pass.run(&[a, b, c], cells, gathered, acc, in_view),
-                [a, b] => pass.run(&[a, b], cells, gathered, acc, in_view),
-                [a] => pass.run(&[a], cells, gathered, acc, in_view),
-                _ => {}
-            }
-        }
-        #[allow(clippy::cast_precision_loss)]
-        let read = tags.len() as f32;
-        for (k, &seen) in terms.iter_mut().zip(in_view.iter()) {
-            #[allow(clippy::cast_precision_loss)]
-            {
-                *k += read - seen as f32;
-            }
-        }
     }
 
     /// (mean RSS, miss term) at antenna-frame `(x, y)`.
