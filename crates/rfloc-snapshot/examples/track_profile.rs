@@ -29,10 +29,10 @@ fn cpu_ns() -> u64 {
 /// Mean over `reps` calls (wall and CPU time), and the best mean of 20 batches of `reps / 20`
 /// (the least disturbed by other processes on a shared machine).
 fn time<T>(name: &str, reps: usize, mut f: impl FnMut() -> T) {
-    // `ONLY=part` times only the parts whose name starts with `part`, 20 times as often (for
+    // `ONLY=part` times only the parts whose name starts with `part`, 200 times as often (for
     // a profiler).
     let reps = match std::env::var("ONLY") {
-        Ok(only) if name.starts_with(&only) => reps * 20,
+        Ok(only) if name.starts_with(&only) => reps * 200,
         Ok(_) => return,
         Err(_) => reps,
     };

@@ -41,6 +41,8 @@ pub(crate) const FIELD_HEADINGS: usize = 64;
 const TILE: usize = 16;
 /// Nodes per tile side (a tile holds the nodes on its far edges too).
 const TILE_NODES: usize = TILE + 1;
+/// Entries of a tile from a node to the node one up and one right, all headings included.
+const CORNER_SPAN: usize = (TILE_NODES + 2) * FIELD_HEADINGS;
 
 /// 1.5·2⁵²: adding it to `x` (`|x| < 2⁵¹`) rounds `x` to the nearest integer (ties to even),
 /// which the sum holds in its low mantissa bits; subtracting it again gives that integer.
@@ -75,6 +77,8 @@ pub(crate) fn floor_f64(x: f64) -> f64 {
 /// one, `f − node` in `[0, 1]`, without float-to-integer conversions: `f − ½ + 1.5·2⁵²` holds
 /// `round(f − ½)` in its low mantissa bits. When `f` is an integer the node may be `f − 1` with
 /// weight 1, which interpolates to the same value.
+/// (The reference of [`lower_node_bits`], for tests.)
+#[cfg(test)]
 #[inline]
 fn lower_node(f: f64) -> (usize, f32) {
     let r = (f - 0.5) + ROUND_MAGIC;
@@ -83,6 +87,16 @@ fn lower_node(f: f64) -> (usize, f32) {
     let w = ((f - node) as f32).clamp(0.0, 1.0);
     #[allow(clippy::cast_possible_truncation)]
     ((r.to_bits() & ((1 << 51) - 1)) as usize, w)
+}
+
+/// [`lower_node`] with the node as 64 bits (so that loops over many values vectorise).
+#[inline]
+fn lower_node_bits(f: f64) -> (u64, f32) {
+    let r = (f - 0.5) + ROUND_MAGIC;
+    let node = r - ROUND_MAGIC;
+    #[allow(clippy::cast_possible_truncation)]
+    let w = ((f - node) as f32).clamp(0.0, 1.0);
+    (r.to_bits() & ((1 << 51) - 1), w)
 }
 
 /// Lanes of the chunked loops over poses (the compiler keeps a chunk in vector registers).
@@ -493,6 +507,55 @@ struct Buckets {
     tags: Vec<Vec<(f64, f64)>>,
 }
 
+/// Antenna poses of many robot poses, one vector per quantity (so that loops over them
+/// vectorise): position, heading, and the heading's cosine and sine in single precision (as the
+/// tables use them).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct AntennaLanes {
+    pub(crate) x: Vec<f64>,
+    pub(crate) y: Vec<f64>,
+    pub(crate) theta: Vec<f64>,
+    pub(crate) cos: Vec<f32>,
+    pub(crate) sin: Vec<f32>,
+}
+
+impl AntennaLanes {
+    /// Clears and holds `n` zero poses.
+    pub(crate) fn reset(&mut self, n: usize) {
+        for v in [&mut self.x, &mut self.y, &mut self.theta] {
+            v.clear();
+            v.resize(n, 0.0);
+        }
+        for v in [&mut self.cos, &mut self.sin] {
+            v.clear();
+            v.resize(n, 0.0);
+        }
+    }
+
+    /// Number of poses.
+    pub(crate) fn len(&self) -> usize {
+        self.x.len()
+    }
+}
+
+/// Scratch of [`MissField::sample_many`]: per pose, its place in the field (tile, or
+/// `u32::MAX` outside the field; offset of its lower node in the tile; its two headings; the
+/// weights of the upper nodes along x, y and the heading), then the values at the eight
+/// surrounding nodes.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct FieldScratch {
+    tile: Vec<u32>,
+    node: Vec<u32>,
+    k0: Vec<u32>,
+    k1: Vec<u32>,
+    wx: Vec<f32>,
+    wy: Vec<f32>,
+    wt: Vec<f32>,
+    /// 16 rows of one value per pose: at the lower heading (sum, count) at the nodes
+    /// `(0, 0)`, `(1, 0)`, `(0, 1)`, `(1, 1)` (x, y), then the same at the upper heading.
+    corners: Vec<f32>,
+}
+
 /// Sum and count of the miss terms of all mapped tags in view, by antenna pose (see the module
 /// documentation).
 pub(crate) struct MissField {
@@ -668,7 +731,9 @@ impl MissField {
         out.into_boxed_slice()
     }
 
-    /// (sum of miss terms, number of tags in view) at antenna pose `(x, y, θ)`, interpolated.
+    /// (sum of miss terms, number of tags in view) at antenna pose `(x, y, θ)`, interpolated:
+    /// the reference [`MissField::sample_many`] is tested against.
+    #[cfg(test)]
     #[must_use]
     pub(crate) fn sample(&self, x: f64, y: f64, theta: f64) -> (f32, f32) {
         let fx = (x - self.x0) * (1.0 / FIELD_STEP);
@@ -705,6 +770,139 @@ impl MissField {
             ay,
         );
         (v[0], v[1])
+    }
+
+    /// [`MissField::sample`] at many antenna poses, written to `sums` and `counts` (as long as
+    /// the poses), with the same bits: the lattice nodes and weights of every pose first (a
+    /// loop that vectorises), then the nodes' values (scalar look-ups), then the
+    /// interpolations (a loop that vectorises).
+    pub(crate) fn sample_many(
+        &self,
+        poses: &AntennaLanes,
+        scratch: &mut FieldScratch,
+        sums: &mut [f32],
+        counts: &mut [f32],
+    ) {
+        let n = poses.len();
+        let FieldScratch {
+            tile,
+            node,
+            k0,
+            k1,
+            wx,
+            wy,
+            wt,
+            corners,
+        } = scratch;
+        for v in [&mut *tile, &mut *node, &mut *k0, &mut *k1] {
+            v.clear();
+            v.resize(n, 0);
+        }
+        for v in [&mut *wx, &mut *wy, &mut *wt] {
+            v.clear();
+            v.resize(n, 0.0);
+        }
+        // Every value is written below.
+        corners.resize(16 * n, 0.0);
+        #[allow(clippy::cast_precision_loss)]
+        let (lim_x, lim_y) = ((self.tx * TILE) as f64, (self.ty * TILE) as f64);
+        let (x0, y0) = (self.x0, self.y0);
+        #[allow(clippy::cast_possible_truncation)]
+        let tiles_x = self.tx as u64;
+        crate::simd::widest(
+            #[inline(always)]
+            || {
+                let (px, py, pt) = (&poses.x[..n], &poses.y[..n], &poses.theta[..n]);
+                let (tile, node, k0, k1) =
+                    (&mut tile[..n], &mut node[..n], &mut k0[..n], &mut k1[..n]);
+                let (wx, wy, wt) = (&mut wx[..n], &mut wy[..n], &mut wt[..n]);
+                for i in 0..n {
+                    let (x, y, theta) = (px[i], py[i], pt[i]);
+                    let fx = (x - x0) * (1.0 / FIELD_STEP);
+                    let fy = (y - y0) * (1.0 / FIELD_STEP);
+                    let inside = fx >= 0.0 && fy >= 0.0 && fx < lim_x && fy < lim_y;
+                    let inside = inside && theta.abs() < 1e9;
+                    let (gx, ax) = lower_node_bits(fx);
+                    let (gy, ay) = lower_node_bits(fy);
+                    #[allow(clippy::cast_precision_loss)]
+                    let (gk, at) = lower_node_bits(theta * (FIELD_HEADINGS as f64 / TAU));
+                    let t = (gy / TILE as u64) * tiles_x + gx / TILE as u64;
+                    let lx = gx % TILE as u64;
+                    let ly = gy % TILE as u64;
+                    #[allow(clippy::cast_possible_truncation)]
+                    {
+                        tile[i] = if inside { t as u32 } else { u32::MAX };
+                        node[i] = ((ly * TILE_NODES as u64 + lx) * FIELD_HEADINGS as u64) as u32;
+                        k0[i] = (gk % FIELD_HEADINGS as u64) as u32;
+                        k1[i] = ((gk + 1) % FIELD_HEADINGS as u64) as u32;
+                    }
+                    (wx[i], wy[i], wt[i]) = (ax, ay, at);
+                }
+            },
+        );
+        // Poses of a cloud fall in few tiles: keep the last one at hand.
+        let mut last: Option<(u32, &[[f32; 2]])> = None;
+        let mut rows = corners.chunks_exact_mut(n.max(1));
+        let mut rows: [&mut [f32]; 16] = std::array::from_fn(|_| rows.next().unwrap_or(&mut []));
+        for row in &mut rows {
+            *row = &mut std::mem::take(row)[..n];
+        }
+        for i in 0..n {
+            let (t, n00) = (tile[i], node[i] as usize);
+            let here = match last {
+                Some((lt, slice)) if lt == t => Some(slice),
+                _ if t == u32::MAX => None,
+                _ => self
+                    .tile(t as usize)
+                    .inspect(|slice| last = Some((t, slice))),
+            };
+            // The nodes from (0, 0) to (1, 1), all headings (fixed size: no bounds checks).
+            let span = here
+                .and_then(|slice| slice.get(n00..n00 + CORNER_SPAN))
+                .and_then(|nodes| <&[[f32; 2]; CORNER_SPAN]>::try_from(nodes).ok());
+            let (ka, kb) = (
+                k0[i] as usize % FIELD_HEADINGS,
+                k1[i] as usize % FIELD_HEADINGS,
+            );
+            match span {
+                Some(nodes) => {
+                    let near = [0, 1, TILE_NODES, TILE_NODES + 1].map(|c| c * FIELD_HEADINGS);
+                    for (j, c) in near.into_iter().enumerate() {
+                        [rows[2 * j][i], rows[2 * j + 1][i]] = nodes[c + ka];
+                        [rows[8 + 2 * j][i], rows[9 + 2 * j][i]] = nodes[c + kb];
+                    }
+                }
+                // Outside the field: zeros.
+                None => {
+                    for row in &mut rows {
+                        row[i] = 0.0;
+                    }
+                    (wx[i], wy[i], wt[i]) = (0.0, 0.0, 0.0);
+                }
+            }
+        }
+        crate::simd::widest(
+            #[inline(always)]
+            || {
+                let mut rows = corners.chunks_exact(n.max(1));
+                let mut c: [&[f32]; 16] = [&[]; 16];
+                for row in &mut c {
+                    *row = rows.next().map_or(&[], |r| &r[..n]);
+                }
+                let (wx, wy, wt) = (&wx[..n], &wy[..n], &wt[..n]);
+                let (sums, counts) = (&mut sums[..n], &mut counts[..n]);
+                let lerp = |a: f32, b: f32, t: f32| a + t * (b - a);
+                for i in 0..n {
+                    let (ax, ay, at) = (wx[i], wy[i], wt[i]);
+                    // Along the heading at the four corners, then along x, then along y.
+                    // (No `array::from_fn` here: it is not always inlined.)
+                    let h = |k: usize| lerp(c[k][i], c[k + 8][i], at);
+                    let (s0, c0) = (lerp(h(0), h(2), ax), lerp(h(1), h(3), ax));
+                    let (s1, c1) = (lerp(h(4), h(6), ax), lerp(h(5), h(7), ax));
+                    (sums[i], counts[i]) = (lerp(s0, s1, ay), lerp(c0, c1, ay));
+                }
+            },
+        );
     }
 
     /// Exact (uninterpolated) sum and count at an antenna pose, by direct summation (tests).
@@ -862,6 +1060,61 @@ mod tests {
         assert!(field.computed_tiles() < field.tile_count());
         field.compute_all();
         assert_eq!(field.computed_tiles(), field.tile_count());
+    }
+
+    /// `sample_many` (three passes, in whatever instructions this CPU has) against `sample`
+    /// one pose at a time in the baseline instructions: the same bits, for poses inside and
+    /// outside the field, at every heading (also far outside one turn) and on lattice nodes.
+    #[test]
+    fn sample_many_equals_sample_bit_for_bit() {
+        use rand::{Rng, SeedableRng};
+        let model = ReadModel::seed000(1000.0, 2);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let tags: Vec<(f64, f64)> = (0..300)
+            .map(|_| (4.0 * rng.random::<f64>(), 3.0 * rng.random::<f64>()))
+            .collect();
+        let field = MissField::new(ReadTable::new(&model, 6.0), &tags);
+        let mut poses = AntennaLanes::default();
+        let n = 1003;
+        poses.reset(n);
+        for i in 0..n {
+            let (x, y, theta) = match i % 7 {
+                // Outside, and not finite.
+                0 => (-9.0 + 30.0 * rng.random::<f64>(), 9.0, 0.3),
+                1 => (f64::NAN, 1.0, 0.0),
+                2 => (1.0, 1.0, f64::INFINITY),
+                // On lattice nodes.
+                3 => (
+                    FIELD_STEP * f64::from(rng.random_range(0..60_u8)) + field.x0,
+                    FIELD_STEP * f64::from(rng.random_range(0..40_u8)) + field.y0,
+                    TAU / 64.0 * f64::from(rng.random_range(0..64_u8)),
+                ),
+                _ => (
+                    -3.0 + 10.0 * rng.random::<f64>(),
+                    -3.0 + 9.0 * rng.random::<f64>(),
+                    100.0 * rng.random::<f64>() - 50.0,
+                ),
+            };
+            (poses.x[i], poses.y[i], poses.theta[i]) = (x, y, theta);
+        }
+        let (mut sums, mut counts) = (vec![f32::NAN; n], vec![f32::NAN; n]);
+        let mut scratch = FieldScratch::default();
+        // Twice: the scratch is reused.
+        for _ in 0..2 {
+            field.sample_many(&poses, &mut scratch, &mut sums, &mut counts);
+            for i in 0..n {
+                let expected = crate::simd::on_baseline(|| {
+                    field.sample(poses.x[i], poses.y[i], poses.theta[i])
+                });
+                assert_eq!(
+                    (sums[i].to_bits(), counts[i].to_bits()),
+                    (expected.0.to_bits(), expected.1.to_bits()),
+                    "pose {i}"
+                );
+            }
+        }
+        let scored = sums.iter().filter(|s| **s < 0.0).count();
+        assert!(scored > n / 10, "{scored} poses see tags");
     }
 
     /// `add_reads` (in whatever instructions this CPU has, four tags per pass) against a plain

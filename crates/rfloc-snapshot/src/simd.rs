@@ -1,5 +1,6 @@
-//! Hot loops compiled twice, for the baseline instruction set and for AVX2, and run in the
-//! widest the CPU has (chosen at run time; `pulp` holds the one `unsafe` call this needs).
+//! Hot loops compiled three times, for the baseline instruction set, for AVX2 (x86-64-v3) and
+//! for AVX-512 (x86-64-v4), and run in the widest the CPU has (chosen at run time; `pulp` holds
+//! the one `unsafe` call this needs).
 //!
 //! Only plain floating-point code runs this way: Rust never fuses a multiply and an add on its
 //! own, and the operations and their order are the same in every variant, so every variant
@@ -9,6 +10,8 @@
 /// Runs `f` with the widest vector instructions this CPU has. `f` should be a loop over many
 /// items that the compiler vectorises, marked `#[inline(always)]` (a closure that is not
 /// inlined into the variant is compiled for the baseline only), and what it calls `#[inline]`.
+/// Plain `for` loops over slices: `collect`, `extend` and `array::from_fn` call functions the
+/// compiler may leave out of line, which then run in the baseline instructions.
 #[inline]
 pub(crate) fn widest<R>(f: impl FnOnce() -> R) -> R {
     #[cfg(test)]

@@ -27,7 +27,9 @@ use std::sync::Arc;
 use rfloc_pose::{normal_cdf, Pose2};
 use serde::{Deserialize, Serialize};
 
-use crate::readtable::{sincos_f32, MissField, PoseLanes, ReadScratch, ReadTable};
+use crate::readtable::{
+    sincos_f32, AntennaLanes, FieldScratch, MissField, PoseLanes, ReadScratch, ReadTable,
+};
 use crate::snapshot::Snapshot;
 use crate::tag::TagId;
 
@@ -209,12 +211,13 @@ const BLOCK: usize = 256;
 /// Work buffers of [`TagMap::log_likelihoods`] (kept between calls to avoid allocating).
 #[derive(Debug, Clone, Default)]
 pub struct LikelihoodScratch {
-    /// Per pose of a block: the antenna's position and its heading's sine and cosine.
-    antenna: Vec<(f64, f64, f32, f32)>,
+    /// Per pose of a block: the antenna's pose and its heading's cosine and sine.
+    antenna: AntennaLanes,
     poses: PoseLanes,
     acc: Vec<f32>,
     terms: Vec<f32>,
     reads: ReadScratch,
+    field: FieldScratch,
 }
 
 /// Learned tag positions, with the reader model tabulated for fast scoring.
@@ -486,6 +489,7 @@ impl TagMap {
             acc,
             terms,
             reads,
+            field: field_scratch,
         } = scratch;
         let (ox, oy) = poses.first().map_or((0.0, 0.0), |p| (p.x, p.y));
         let off = self.model.antenna_offset;
@@ -515,27 +519,36 @@ impl TagMap {
             crate::simd::widest(
                 #[inline(always)]
                 || {
-                    antenna.clear();
-                    antenna.extend(block.iter().map(|p| {
+                    // Plain loops over slices (an `extend` would call a fold that is not
+                    // inlined here, so not compiled for the wider instructions).
+                    antenna.reset(m);
+                    let AntennaLanes {
+                        x,
+                        y,
+                        theta,
+                        cos,
+                        sin,
+                    } = antenna;
+                    let (x, y, theta) = (&mut x[..m], &mut y[..m], &mut theta[..m]);
+                    let (cos, sin) = (&mut cos[..m], &mut sin[..m]);
+                    for (i, p) in block.iter().enumerate().take(m) {
                         let (s, c) = sincos_f32(p.theta);
-                        (p.x + f64::from(c) * off, p.y + f64::from(s) * off, c, s)
-                    }));
-                    let slots = lanes
-                        .c
-                        .iter_mut()
-                        .zip(lanes.s.iter_mut())
-                        .zip(lanes.u.iter_mut().zip(lanes.v.iter_mut()));
-                    for (&(ax, ay, c, s), ((pc, ps), (pu, pv))) in antenna.iter().zip(slots) {
-                        [*pc, *ps, *pu, *pv] = PoseLanes::lane(ax - ox, ay - oy, c, s);
+                        x[i] = p.x + f64::from(c) * off;
+                        y[i] = p.y + f64::from(s) * off;
+                        theta[i] = p.theta;
+                        (cos[i], sin[i]) = (c, s);
+                    }
+                    let (pc, ps) = (&mut lanes.c[..m], &mut lanes.s[..m]);
+                    let (pu, pv) = (&mut lanes.u[..m], &mut lanes.v[..m]);
+                    for i in 0..m {
+                        [pc[i], ps[i], pu[i], pv[i]] =
+                            PoseLanes::lane(x[i] - ox, y[i] - oy, cos[i], sin[i]);
                     }
                 },
             );
             // The field at each antenna pose.
             if !reads_only {
-                let slots = acc.iter_mut().zip(terms.iter_mut());
-                for ((&(ax, ay, _, _), p), (a, k)) in antenna.iter().zip(block).zip(slots) {
-                    (*a, *k) = field.sample(ax, ay, p.theta);
-                }
+                field.sample_many(antenna, field_scratch, &mut acc[..m], &mut terms[..m]);
             }
             table.add_reads(
                 &tags, inv_sigma, floor, reads_only, lanes, reads, acc, terms,

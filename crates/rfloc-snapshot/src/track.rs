@@ -627,12 +627,18 @@ impl TrackFilter {
         // Heaviest 0.3 m cell.
         const CELL: f64 = 0.3;
         let floor = crate::readtable::floor_f64;
-        let keys: Vec<(i64, i64)> = self
-            .poses
-            .iter()
-            .map(|p| (floor(p.x / CELL) as i64, floor(p.y / CELL) as i64))
-            .collect();
-        let cells = CellWeights::new(keys.iter().copied().zip(self.weights.iter().copied()));
+        // A plain loop over a slice (a `collect` would call a fold that is not inlined into
+        // the wider instructions' variant).
+        let mut keys = vec![(0_i64, 0_i64); self.poses.len()];
+        crate::simd::widest(
+            #[inline(always)]
+            || {
+                for (k, p) in keys.iter_mut().zip(&self.poses) {
+                    *k = (floor(p.x / CELL) as i64, floor(p.y / CELL) as i64);
+                }
+            },
+        );
+        let cells = CellWeights::new(&keys, &self.weights);
         // The cell whose 3×3 neighbourhood is heaviest (a diffuse mode beats a tight speck);
         // ties go to the smallest cell.
         let best = cells
@@ -666,9 +672,14 @@ impl TrackFilter {
         let (wx, wy, mass) = window?;
         // Every particle's heading sine and cosine first (a loop that vectorises), then the
         // sums over the window in order.
-        let trig: Vec<(f64, f64)> = crate::simd::widest(
+        let mut trig = vec![(0.0, 0.0); self.poses.len()];
+        crate::simd::widest(
             #[inline(always)]
-            || self.poses.iter().map(|p| sincos(p.theta)).collect(),
+            || {
+                for (t, p) in trig.iter_mut().zip(&self.poses) {
+                    *t = sincos(p.theta);
+                }
+            },
         );
         let (mut ss, mut sc) = (0.0, 0.0);
         for ((p, w), (s, c)) in self.poses.iter().zip(&self.weights).zip(trig) {
@@ -718,9 +729,10 @@ enum CellWeights {
 }
 
 impl CellWeights {
-    fn new(items: impl Iterator<Item = ((i64, i64), f64)> + Clone) -> Self {
+    /// The weights of the particles in cells `keys`, summed per cell in the particles' order.
+    fn new(keys: &[(i64, i64)], weights: &[f64]) -> Self {
         let (mut x0, mut y0, mut x1, mut y1) = (i64::MAX, i64::MAX, i64::MIN, i64::MIN);
-        for ((x, y), _) in items.clone() {
+        for &(x, y) in keys {
             x0 = x0.min(x);
             y0 = y0.min(y);
             x1 = x1.max(x);
@@ -729,15 +741,33 @@ impl CellWeights {
         let (nx, ny) = (x1.saturating_sub(x0) + 1, y1.saturating_sub(y0) + 1);
         if x0 <= x1 && nx <= 256 && ny <= 256 {
             let mut w = vec![0.0; (nx * ny) as usize];
-            for ((x, y), v) in items {
-                if let Some(c) = w.get_mut(((y - y0) * nx + (x - x0)) as usize) {
-                    *c += v;
+            // A run of particles in one cell is summed in a register (resampled clouds hold
+            // runs of copies), starting from and stored back to the cell: the same additions
+            // in the same order as adding each weight to the cell.
+            let mut run: Option<(usize, f64)> = None;
+            for (&(x, y), &v) in keys.iter().zip(weights) {
+                let i = ((y - y0) * nx + (x - x0)) as usize;
+                run = Some(match run {
+                    Some((j, sum)) if j == i => (j, sum + v),
+                    previous => {
+                        if let Some((j, sum)) = previous {
+                            if let Some(c) = w.get_mut(j) {
+                                *c = sum;
+                            }
+                        }
+                        (i, w.get(i).copied().unwrap_or(0.0) + v)
+                    }
+                });
+            }
+            if let Some((j, sum)) = run {
+                if let Some(c) = w.get_mut(j) {
+                    *c = sum;
                 }
             }
             Self::Dense { x0, y0, nx, ny, w }
         } else {
             let mut cells = std::collections::HashMap::new();
-            for (k, v) in items {
+            for (&k, &v) in keys.iter().zip(weights) {
                 *cells.entry(k).or_insert(0.0) += v;
             }
             Self::Sparse(cells)
