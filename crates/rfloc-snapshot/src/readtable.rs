@@ -551,9 +551,9 @@ pub(crate) struct FieldScratch {
     wx: Vec<f32>,
     wy: Vec<f32>,
     wt: Vec<f32>,
-    /// 16 rows of one value per pose: at the lower heading (sum, count) at the nodes
-    /// `(0, 0)`, `(1, 0)`, `(0, 1)`, `(1, 1)` (x, y), then the same at the upper heading.
-    corners: Vec<f32>,
+    /// 8 rows of one (sum, count) per pose: at the lower heading at the nodes `(0, 0)`,
+    /// `(1, 0)`, `(0, 1)`, `(1, 1)` (x, y), then the same at the upper heading.
+    corners: Vec<[f32; 2]>,
 }
 
 /// Sum and count of the miss terms of all mapped tags in view, by antenna pose (see the module
@@ -803,12 +803,13 @@ impl MissField {
             v.resize(n, 0.0);
         }
         // Every value is written below.
-        corners.resize(16 * n, 0.0);
+        corners.resize(8 * n, [0.0; 2]);
         #[allow(clippy::cast_precision_loss)]
         let (lim_x, lim_y) = ((self.tx * TILE) as f64, (self.ty * TILE) as f64);
         let (x0, y0) = (self.x0, self.y0);
+        // Tiles per row fit in 32 bits (at most 10⁵, see `new`).
         #[allow(clippy::cast_possible_truncation)]
-        let tiles_x = self.tx as u64;
+        let tiles_x = self.tx as u32;
         crate::simd::widest(
             #[inline(always)]
             || {
@@ -826,16 +827,19 @@ impl MissField {
                     let (gy, ay) = lower_node_bits(fy);
                     #[allow(clippy::cast_precision_loss)]
                     let (gk, at) = lower_node_bits(theta * (FIELD_HEADINGS as f64 / TAU));
-                    let t = (gy / TILE as u64) * tiles_x + gx / TILE as u64;
-                    let lx = gx % TILE as u64;
-                    let ly = gy % TILE as u64;
+                    // In 32 bits (vector multiplies of 64-bit integers are slow): inside the
+                    // field the nodes are far below 2³², and 2³² is a multiple of the
+                    // headings; outside, the tile is replaced.
                     #[allow(clippy::cast_possible_truncation)]
-                    {
-                        tile[i] = if inside { t as u32 } else { u32::MAX };
-                        node[i] = ((ly * TILE_NODES as u64 + lx) * FIELD_HEADINGS as u64) as u32;
-                        k0[i] = (gk % FIELD_HEADINGS as u64) as u32;
-                        k1[i] = ((gk + 1) % FIELD_HEADINGS as u64) as u32;
-                    }
+                    let (gx, gy, gk) = (gx as u32, gy as u32, gk as u32);
+                    let t = (gy / TILE as u32)
+                        .wrapping_mul(tiles_x)
+                        .wrapping_add(gx / TILE as u32);
+                    let (lx, ly) = (gx % TILE as u32, gy % TILE as u32);
+                    tile[i] = if inside { t } else { u32::MAX };
+                    node[i] = (ly * TILE_NODES as u32 + lx) * FIELD_HEADINGS as u32;
+                    k0[i] = gk % FIELD_HEADINGS as u32;
+                    k1[i] = gk.wrapping_add(1) % FIELD_HEADINGS as u32;
                     (wx[i], wy[i], wt[i]) = (ax, ay, at);
                 }
             },
@@ -843,7 +847,8 @@ impl MissField {
         // Poses of a cloud fall in few tiles: keep the last one at hand.
         let mut last: Option<(u32, &[[f32; 2]])> = None;
         let mut rows = corners.chunks_exact_mut(n.max(1));
-        let mut rows: [&mut [f32]; 16] = std::array::from_fn(|_| rows.next().unwrap_or(&mut []));
+        let mut rows: [&mut [[f32; 2]]; 8] =
+            std::array::from_fn(|_| rows.next().unwrap_or(&mut []));
         for row in &mut rows {
             *row = &mut std::mem::take(row)[..n];
         }
@@ -868,14 +873,14 @@ impl MissField {
                 Some(nodes) => {
                     let near = [0, 1, TILE_NODES, TILE_NODES + 1].map(|c| c * FIELD_HEADINGS);
                     for (j, c) in near.into_iter().enumerate() {
-                        [rows[2 * j][i], rows[2 * j + 1][i]] = nodes[c + ka];
-                        [rows[8 + 2 * j][i], rows[9 + 2 * j][i]] = nodes[c + kb];
+                        rows[j][i] = nodes[c + ka];
+                        rows[4 + j][i] = nodes[c + kb];
                     }
                 }
                 // Outside the field: zeros.
                 None => {
                     for row in &mut rows {
-                        row[i] = 0.0;
+                        row[i] = [0.0; 2];
                     }
                     (wx[i], wy[i], wt[i]) = (0.0, 0.0, 0.0);
                 }
@@ -885,7 +890,7 @@ impl MissField {
             #[inline(always)]
             || {
                 let mut rows = corners.chunks_exact(n.max(1));
-                let mut c: [&[f32]; 16] = [&[]; 16];
+                let mut c: [&[[f32; 2]]; 8] = [&[]; 8];
                 for row in &mut c {
                     *row = rows.next().map_or(&[], |r| &r[..n]);
                 }
@@ -896,9 +901,9 @@ impl MissField {
                     let (ax, ay, at) = (wx[i], wy[i], wt[i]);
                     // Along the heading at the four corners, then along x, then along y.
                     // (No `array::from_fn` here: it is not always inlined.)
-                    let h = |k: usize| lerp(c[k][i], c[k + 8][i], at);
-                    let (s0, c0) = (lerp(h(0), h(2), ax), lerp(h(1), h(3), ax));
-                    let (s1, c1) = (lerp(h(4), h(6), ax), lerp(h(5), h(7), ax));
+                    let h = |j: usize, q: usize| lerp(c[j][i][q], c[j + 4][i][q], at);
+                    let (s0, c0) = (lerp(h(0, 0), h(1, 0), ax), lerp(h(0, 1), h(1, 1), ax));
+                    let (s1, c1) = (lerp(h(2, 0), h(3, 0), ax), lerp(h(2, 1), h(3, 1), ax));
                     (sums[i], counts[i]) = (lerp(s0, s1, ay), lerp(c0, c1, ay));
                 }
             },
