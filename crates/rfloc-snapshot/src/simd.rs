@@ -47,3 +47,49 @@ impl<R, F: FnOnce() -> R> pulp::WithSimd for Run<F> {
         (self.0)()
     }
 }
+
+/// Interleaved partial sums of [`lane_sums`].
+const SUM_LANES: usize = 8;
+
+/// The `K` sums over the items of `a` and `b` (zipped) of `f(a_i, b_i)`, each kept as 8
+/// interleaved partial sums (item `i` goes to partial `i mod 8`) that are added pairwise at the
+/// end: independent additions that vectorise, instead of one chain of dependent ones whose
+/// latency bounds the loop. The order is fixed, so every instruction set gives the same bits
+/// (not those of a plain left-to-right sum).
+#[inline]
+pub(crate) fn lane_sums<A, B, const K: usize>(
+    a: &[A],
+    b: &[B],
+    f: impl Fn(&A, &B) -> [f64; K],
+) -> [f64; K] {
+    let acc = widest(
+        #[inline(always)]
+        || {
+            let mut acc = [[0.0_f64; SUM_LANES]; K];
+            let n = a.len().min(b.len());
+            let (a, b) = (
+                a[..n].chunks_exact(SUM_LANES),
+                b[..n].chunks_exact(SUM_LANES),
+            );
+            let (ra, rb) = (a.remainder(), b.remainder());
+            for (xa, xb) in a.zip(b) {
+                for lane in 0..SUM_LANES {
+                    for (sum, v) in acc.iter_mut().zip(f(&xa[lane], &xb[lane])) {
+                        sum[lane] += v;
+                    }
+                }
+            }
+            for (lane, (xa, xb)) in ra.iter().zip(rb).enumerate() {
+                for (sum, v) in acc.iter_mut().zip(f(xa, xb)) {
+                    sum[lane] += v;
+                }
+            }
+            acc
+        },
+    );
+    let mut out = [0.0; K];
+    for (o, p) in out.iter_mut().zip(&acc) {
+        *o = ((p[0] + p[1]) + (p[2] + p[3])) + ((p[4] + p[5]) + (p[6] + p[7]));
+    }
+    out
+}

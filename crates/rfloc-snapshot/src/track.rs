@@ -314,21 +314,34 @@ pub(crate) fn exp(x: f64) -> f64 {
     }
 }
 
-/// [`wrap_angle`] without the library's `fmod` for `|a| < 2π` (bit-identical there: `fmod`
-/// returns such an `a` unchanged, and `rem_euclid` then adds 2π to a negative one).
+/// [`wrap_angle`] without the library's `fmod` (which does not vectorise) for `|a| < 2²⁰`:
+/// bit-identical for `|a| < 2π` (`fmod` returns such an `a` unchanged, and `rem_euclid` then
+/// adds 2π to a negative one); beyond, `a` less the nearest multiple of 2π, within
+/// `|a|·2⁻⁵²` of it (particle headings are not wrapped by the motion model).
 #[inline]
 fn wrap_small(a: f64) -> f64 {
     use std::f64::consts::{PI, TAU};
-    if a.abs() < TAU {
-        let r = if a < 0.0 { a + TAU } else { a };
-        if r > PI {
-            r - TAU
-        } else {
-            r
-        }
+    let r = if a.abs() < TAU {
+        a
+    } else if a.abs() < 1_048_576.0 {
+        a - crate::readtable::round_f64(a * (1.0 / TAU)) * TAU
     } else {
-        wrap_angle(a)
+        return wrap_far(a);
+    };
+    let r = if r < 0.0 { r + TAU } else { r };
+    if r > PI {
+        r - TAU
+    } else {
+        r
     }
+}
+
+/// [`wrap_angle`] out of line: its remainder is an instruction the compiler may evaluate for
+/// every lane of a vectorised loop (through the library's `fmod`) when the branch is inline.
+#[cold]
+#[inline(never)]
+fn wrap_far(a: f64) -> f64 {
+    wrap_angle(a)
 }
 
 /// `sin θ`, `cos θ` by polynomials after reduction to `[−π/4, π/4]` (error below 1e−13;
@@ -562,9 +575,8 @@ impl TrackFilter {
                 }
             },
         );
-        let mut explained = 0.0;
-        for (w, (per_term, relative)) in self.weights.iter_mut().zip(&scores) {
-            explained += *w * per_term;
+        let [explained] = crate::simd::lane_sums(&self.weights, &scores, |w, s| [w * s.0]);
+        for (w, (_, relative)) in self.weights.iter_mut().zip(&scores) {
             *w *= relative;
         }
         self.scores = scores;
@@ -587,7 +599,8 @@ impl TrackFilter {
             let m = self.weights.len().max(1) as f64;
             self.weights.iter_mut().for_each(|w| *w = 1.0 / m);
         }
-        let ess = 1.0 / self.weights.iter().map(|w| w * w).sum::<f64>().max(1e-300);
+        let [square] = crate::simd::lane_sums(&self.weights, &self.weights, |&w, _| [w * w]);
+        let ess = 1.0 / square.max(1e-300);
         if ess < 0.5 * self.weights.len() as f64 {
             self.resample(rng);
         }
@@ -629,12 +642,13 @@ impl TrackFilter {
         let floor = crate::readtable::floor_f64;
         // A plain loop over a slice (a `collect` would call a fold that is not inlined into
         // the wider instructions' variant).
-        let mut keys = vec![(0_i64, 0_i64); self.poses.len()];
+        // Cell coordinates as whole floats (conversions to integers do not vectorise).
+        let mut keys = vec![(0.0, 0.0); self.poses.len()];
         crate::simd::widest(
             #[inline(always)]
             || {
                 for (k, p) in keys.iter_mut().zip(&self.poses) {
-                    *k = (floor(p.x / CELL) as i64, floor(p.y / CELL) as i64);
+                    *k = (floor(p.x / CELL), floor(p.y / CELL));
                 }
             },
         );
@@ -651,17 +665,14 @@ impl TrackFilter {
         let r2 = self.config.estimate_radius.max(CELL).powi(2);
         // Three mean-shift steps; the heading and mass come from the last step's window.
         let mut window = None;
+        // Sums over the particles in interleaved partial sums (`simd::lane_sums`: they
+        // vectorise); a particle outside the window adds exact zeros (finite poses).
         for _ in 0..3 {
-            // Branch-free: a particle outside the window adds exact zeros (finite poses), so
-            // the sums are those of the particles inside, in the same order.
-            let (mut sw, mut sx, mut sy) = (0.0, 0.0, 0.0);
-            for (p, &w) in self.poses.iter().zip(&self.weights) {
-                let inside = (p.x - cx).powi(2) + (p.y - cy).powi(2) <= r2;
-                let w = if inside { w } else { 0.0 };
-                sw += w;
-                sx += w * p.x;
-                sy += w * p.y;
-            }
+            let [sw, sx, sy] = crate::simd::lane_sums(&self.poses, &self.weights, |p, &w| {
+                let (dx, dy) = (p.x - cx, p.y - cy);
+                let w = if dx * dx + dy * dy <= r2 { w } else { 0.0 };
+                [w, w * p.x, w * p.y]
+            });
             if sw <= 0.0 {
                 break;
             }
@@ -670,41 +681,29 @@ impl TrackFilter {
             cy = sy / sw;
         }
         let (wx, wy, mass) = window?;
-        // Every particle's heading sine and cosine first (a loop that vectorises), then the
-        // sums over the window in order.
-        let mut trig = vec![(0.0, 0.0); self.poses.len()];
-        crate::simd::widest(
-            #[inline(always)]
-            || {
-                for (t, p) in trig.iter_mut().zip(&self.poses) {
-                    *t = sincos(p.theta);
-                }
-            },
-        );
-        let (mut ss, mut sc) = (0.0, 0.0);
-        for ((p, w), (s, c)) in self.poses.iter().zip(&self.weights).zip(trig) {
-            if (p.x - wx).powi(2) + (p.y - wy).powi(2) <= r2 {
-                ss += w * s;
-                sc += w * c;
-            }
-        }
+        let [ss, sc] = crate::simd::lane_sums(&self.poses, &self.weights, |p, &w| {
+            let (dx, dy) = (p.x - wx, p.y - wy);
+            let w = if dx * dx + dy * dy <= r2 { w } else { 0.0 };
+            let (s, c) = sincos(p.theta);
+            [w * s, w * c]
+        });
         let theta = wrap_angle(ss.atan2(sc));
-        let mut var = 0.0;
-        let (mut xx, mut xy, mut xt, mut yy, mut yt, mut tt) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-        for (p, w) in self.poses.iter().zip(&self.weights) {
-            let (ex, ey) = (p.x - cx, p.y - cy);
-            let d2 = ex * ex + ey * ey;
-            if d2 <= r2 {
-                var += w * d2;
+        let [var, xx, xy, xt, yy, yt, tt] =
+            crate::simd::lane_sums(&self.poses, &self.weights, |p, &w| {
+                let (ex, ey) = (p.x - cx, p.y - cy);
+                let d2 = ex * ex + ey * ey;
+                let w = if d2 <= r2 { w } else { 0.0 };
                 let et = wrap_small(p.theta - theta);
-                xx += w * ex * ex;
-                xy += w * ex * ey;
-                xt += w * ex * et;
-                yy += w * ey * ey;
-                yt += w * ey * et;
-                tt += w * et * et;
-            }
-        }
+                [
+                    w * d2,
+                    w * ex * ex,
+                    w * ex * ey,
+                    w * ex * et,
+                    w * ey * ey,
+                    w * ey * et,
+                    w * et * et,
+                ]
+            });
         let cov = nalgebra::Matrix3::new(xx, xy, xt, xy, yy, yt, xt, yt, tt);
         Some(TrackEstimate {
             pose: Pose2::new(cx, cy, theta),
@@ -729,46 +728,48 @@ enum CellWeights {
 }
 
 impl CellWeights {
-    /// The weights of the particles in cells `keys`, summed per cell in the particles' order.
-    fn new(keys: &[(i64, i64)], weights: &[f64]) -> Self {
-        let (mut x0, mut y0, mut x1, mut y1) = (i64::MAX, i64::MAX, i64::MIN, i64::MIN);
+    /// The weights of the particles in cells `keys` (whole numbers, as floats), summed per cell
+    /// in the particles' order.
+    fn new(keys: &[(f64, f64)], weights: &[f64]) -> Self {
+        let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
         for &(x, y) in keys {
             x0 = x0.min(x);
             y0 = y0.min(y);
             x1 = x1.max(x);
             y1 = y1.max(y);
         }
-        let (nx, ny) = (x1.saturating_sub(x0) + 1, y1.saturating_sub(y0) + 1);
-        if x0 <= x1 && nx <= 256 && ny <= 256 {
-            let mut w = vec![0.0; (nx * ny) as usize];
-            // A run of particles in one cell is summed in a register (resampled clouds hold
-            // runs of copies), starting from and stored back to the cell: the same additions
-            // in the same order as adding each weight to the cell.
-            let mut run: Option<(usize, f64)> = None;
-            for (&(x, y), &v) in keys.iter().zip(weights) {
-                let i = ((y - y0) * nx + (x - x0)) as usize;
-                run = Some(match run {
-                    Some((j, sum)) if j == i => (j, sum + v),
-                    previous => {
-                        if let Some((j, sum)) = previous {
-                            if let Some(c) = w.get_mut(j) {
-                                *c = sum;
-                            }
-                        }
-                        (i, w.get(i).copied().unwrap_or(0.0) + v)
-                    }
-                });
-            }
-            if let Some((j, sum)) = run {
-                if let Some(c) = w.get_mut(j) {
-                    *c = sum;
+        let (nx, ny) = (x1 - x0 + 1.0, y1 - y0 + 1.0);
+        if x0 <= x1 && nx <= 256.0 && ny <= 256.0 {
+            let (nx, ny) = (nx as usize, ny as usize);
+            // Four interleaved histograms (particle `j` into the `j mod 4`-th), added at the
+            // end: consecutive particles in one cell (runs of resampled copies) do not wait
+            // for each other's sums. (Keys that are not finite are left out.)
+            let cells = nx * ny;
+            let mut parts = vec![0.0; 4 * cells];
+            for (j, (&(x, y), &v)) in keys.iter().zip(weights).enumerate() {
+                if !(x.is_finite() && y.is_finite()) {
+                    continue;
+                }
+                let i = ((y - y0) * nx as f64 + (x - x0)) as usize;
+                if let Some(c) = parts.get_mut((j % 4) * cells + i) {
+                    *c += v;
                 }
             }
-            Self::Dense { x0, y0, nx, ny, w }
+            let (a, rest) = parts.split_at(cells);
+            let (b, rest) = rest.split_at(cells);
+            let (c, d) = rest.split_at(cells);
+            let w = (0..cells).map(|i| (a[i] + b[i]) + (c[i] + d[i])).collect();
+            Self::Dense {
+                x0: x0 as i64,
+                y0: y0 as i64,
+                nx: nx as i64,
+                ny: ny as i64,
+                w,
+            }
         } else {
             let mut cells = std::collections::HashMap::new();
-            for (&k, &v) in keys.iter().zip(weights) {
-                *cells.entry(k).or_insert(0.0) += v;
+            for (&(x, y), &v) in keys.iter().zip(weights) {
+                *cells.entry((x as i64, y as i64)).or_insert(0.0) += v;
             }
             Self::Sparse(cells)
         }
@@ -814,7 +815,7 @@ impl CellWeights {
 
 /// Normalises in place; false when the sum is not positive and finite.
 fn normalise(v: &mut [f64]) -> bool {
-    let s: f64 = v.iter().sum();
+    let [s] = crate::simd::lane_sums(v, v, |&x, _| [x]);
     if s > 0.0 && s.is_finite() {
         v.iter_mut().for_each(|x| *x /= s);
         true
@@ -1021,7 +1022,8 @@ mod tests {
 
     #[test]
     fn wrap_small_is_wrap_angle() {
-        for i in -5000..5000 {
+        // Bit-identical within one turn.
+        for i in -2318..=2318 {
             let a = f64::from(i) * 0.002_71;
             assert_eq!(wrap_small(a).to_bits(), wrap_angle(a).to_bits(), "{a}");
         }
@@ -1030,10 +1032,23 @@ mod tests {
             -0.0,
             std::f64::consts::PI,
             -std::f64::consts::PI,
-            1e3,
+            1e7,
             f64::NAN,
+            f64::INFINITY,
         ] {
             assert_eq!(wrap_small(a).to_bits(), wrap_angle(a).to_bits(), "{a}");
+        }
+        // Beyond, within rounding of the same angle, and in (−π, π].
+        for i in -200_000..200_000 {
+            let a = f64::from(i) * 0.002_713 + 0.5 * f64::from(i % 7);
+            let (w, reference) = (wrap_small(a), wrap_angle(a));
+            let d = (w - reference).abs();
+            let d = d.min((d - std::f64::consts::TAU).abs());
+            assert!(d <= 1e-15 * a.abs().max(1.0), "{a}: {w} vs {reference}");
+            assert!(
+                w > -std::f64::consts::PI && w <= std::f64::consts::PI,
+                "{a}: {w}"
+            );
         }
     }
 
