@@ -93,3 +93,74 @@ pub(crate) fn lane_sums<A, B, const K: usize>(
     }
     out
 }
+
+/// The largest `f(x)` over `items` (`f64::max`: NaN values are ignored; −∞ when there are
+/// none), in 8 interleaved partial maxima: the same value as a plain fold, as the maximum does
+/// not depend on the order.
+#[inline]
+pub(crate) fn lane_max<T>(items: &[T], f: impl Fn(&T) -> f64) -> f64 {
+    let acc = widest(
+        #[inline(always)]
+        || {
+            let mut acc = [f64::NEG_INFINITY; SUM_LANES];
+            let chunks = items.chunks_exact(SUM_LANES);
+            let rest = chunks.remainder();
+            for chunk in chunks {
+                for (m, x) in acc.iter_mut().zip(chunk) {
+                    *m = m.max(f(x));
+                }
+            }
+            for (m, x) in acc.iter_mut().zip(rest) {
+                *m = m.max(f(x));
+            }
+            acc
+        },
+    );
+    acc.into_iter().fold(f64::NEG_INFINITY, f64::max)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Sums: exact on whole numbers, close to a plain sum otherwise, the same bits with the
+    /// baseline instructions, for every length modulo the lanes.
+    #[test]
+    fn lane_sums_add_every_item_once() {
+        for n in 0..40_usize {
+            #[allow(clippy::cast_precision_loss)]
+            let a: Vec<f64> = (0..n).map(|i| i as f64).collect();
+            let b: Vec<f64> = (0..n).map(|i| 0.1 * (i as f64).sin()).collect();
+            let [whole, mixed] = lane_sums(&a, &b, |&x, &y| [x, x * y]);
+            #[allow(clippy::cast_precision_loss)]
+            let expected = (n * n.saturating_sub(1) / 2) as f64;
+            assert_eq!(whole, expected, "{n}");
+            let plain: f64 = a.iter().zip(&b).map(|(x, y)| x * y).sum();
+            assert!((mixed - plain).abs() <= 1e-12 * plain.abs().max(1.0), "{n}");
+            let base = on_baseline(|| lane_sums(&a, &b, |&x, &y| [x, x * y]));
+            assert_eq!(base.map(f64::to_bits), [whole, mixed].map(f64::to_bits));
+        }
+        // The shorter slice decides.
+        assert_eq!(lane_sums(&[1.0, 2.0, 3.0], &[(); 2], |&x, ()| [x]), [3.0]);
+    }
+
+    /// The maximum equals a plain fold: NaN ignored, −∞ when empty.
+    #[test]
+    fn lane_max_is_the_maximum() {
+        assert_eq!(lane_max(&[] as &[f64], |&x| x), f64::NEG_INFINITY);
+        for n in 1..30_usize {
+            #[allow(clippy::cast_precision_loss)]
+            let v: Vec<f64> = (0..n)
+                .map(|i| {
+                    if i % 5 == 3 {
+                        f64::NAN
+                    } else {
+                        ((i * 37) % 11) as f64 - 20.0
+                    }
+                })
+                .collect();
+            let plain = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            assert_eq!(lane_max(&v, |&x| x).to_bits(), plain.to_bits(), "{n}");
+        }
+    }
+}

@@ -560,7 +560,7 @@ impl TrackFilter {
         }
         let mut scores = std::mem::take(&mut self.scores);
         tags.log_likelihoods(&self.poses, &obs, &mut self.scratch, &mut scores);
-        let best = scores.iter().map(|s| s.0).fold(f64::NEG_INFINITY, f64::max);
+        let best = crate::simd::lane_max(&scores, |s| s.0);
         if !best.is_finite() {
             self.scores = scores;
             return;
