@@ -269,8 +269,11 @@ pub async fn run_trial(
     let reader_io = Recorder::new(open(&reader_link).await?, reader_sink.clone());
     let mut kts = KtsClient::spawn(
         reader_io,
+        // No wall-time limits that a loaded machine could trip (a resent command would
+        // change the recorded bytes): the trial has its own step timeout.
         KtsConfig {
             silence_timeout: None,
+            command_timeout: STEP_TIMEOUT,
             ..KtsConfig::default()
         },
         clock.clone(),
@@ -375,7 +378,14 @@ pub async fn run_trial(
         }
     }
     base.set_velocity(0.0, 0.0).await.ok();
+    // The reply may come after the driver stopped waiting for it (its timeout is on wall
+    // time): the emulator is settled and everything it wrote is read, so that every run
+    // records the same bytes.
     let _ = kts.stop_scan().await;
+    let settled = tokio::time::timeout(STEP_TIMEOUT, reader_control.settle(reader_sink.tx_bytes()))
+        .await
+        .context("the emulated reader did not settle after the scan stopped")??;
+    read_all(&reader_sink, settled.tx_bytes).await?;
     base.shutdown().await;
     drop(kts);
     stop.cancel();
