@@ -20,7 +20,7 @@ impl std::fmt::Display for TagId {
 #[must_use]
 pub fn parse_tag_id(text: &str) -> Option<TagId> {
     let digits: Vec<u8> = text.bytes().filter(|b| *b != b' ').collect();
-    if digits.is_empty() || digits.len() % 2 != 0 {
+    if digits.is_empty() || !digits.len().is_multiple_of(2) {
         return None;
     }
     digits

@@ -61,7 +61,7 @@ impl Record {
 pub fn format_time(t_ns: u64) -> String {
     let secs = t_ns / 1_000_000_000;
     let frac = t_ns % 1_000_000_000;
-    if frac % 1000 == 0 {
+    if frac.is_multiple_of(1000) {
         format!("{secs}.{:06}", frac / 1000)
     } else {
         format!("{secs}.{frac:09}")

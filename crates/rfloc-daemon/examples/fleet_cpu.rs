@@ -74,7 +74,7 @@ fn main() -> anyhow::Result<()> {
     while start.elapsed().as_secs_f64() < secs {
         k += 1;
         let t = f64::from(k) * 0.1;
-        let v = if k % 2 == 0 { 0.3 } else { 0.0 };
+        let v = if k.is_multiple_of(2) { 0.3 } else { 0.0 };
         let pose = Pose2::new(0.01 * f64::from(k % 100), 0.0, 0.0);
         let odometry = DeviceEvent::Odometry {
             device: "base".into(),

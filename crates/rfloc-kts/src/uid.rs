@@ -149,7 +149,7 @@ impl fmt::Display for Uid {
 }
 
 fn decode_hex(t: &str) -> Option<Vec<u8>> {
-    if t.len() % 2 != 0 {
+    if !t.len().is_multiple_of(2) {
         return None;
     }
     t.as_bytes()

@@ -91,7 +91,7 @@ impl Scan {
             });
         }
         let cluster = u8::try_from(cluster.max(1)).unwrap_or(1);
-        if reply.data.len() % width != 0 || end < start {
+        if !reply.data.len().is_multiple_of(width) || end < start {
             return Err(ScipError::Malformed {
                 why: "data is not whole values of the echo's width",
                 bytes: reply.data.clone(),

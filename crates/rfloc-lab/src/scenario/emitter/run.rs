@@ -453,7 +453,7 @@ impl Mission<'_> {
             if tick < SETTLE_TICKS {
                 continue;
             }
-            let control = (tick - SETTLE_TICKS) % CONTROL_TICKS == 0;
+            let control = (tick - SETTLE_TICKS).is_multiple_of(CONTROL_TICKS);
             if control {
                 out.pose_estimate
                     .push((t, self.start.compose(&odometry.pose)));
