@@ -76,20 +76,8 @@ pub(crate) fn floor_f64(x: f64) -> f64 {
 /// The lattice node below `f` (taken modulo 2⁵¹ for negative `f`) and the weight of the next
 /// one, `f − node` in `[0, 1]`, without float-to-integer conversions: `f − ½ + 1.5·2⁵²` holds
 /// `round(f − ½)` in its low mantissa bits. When `f` is an integer the node may be `f − 1` with
-/// weight 1, which interpolates to the same value.
-/// (The reference of [`lower_node_bits`], for tests.)
-#[cfg(test)]
-#[inline]
-fn lower_node(f: f64) -> (usize, f32) {
-    let r = (f - 0.5) + ROUND_MAGIC;
-    let node = r - ROUND_MAGIC;
-    #[allow(clippy::cast_possible_truncation)]
-    let w = ((f - node) as f32).clamp(0.0, 1.0);
-    #[allow(clippy::cast_possible_truncation)]
-    ((r.to_bits() & ((1 << 51) - 1)) as usize, w)
-}
-
-/// [`lower_node`] with the node as 64 bits (so that loops over many values vectorise).
+/// weight 1, which interpolates to the same value. The node is 64 bits wide (not `usize`) so
+/// that loops over many values vectorise.
 #[inline]
 fn lower_node_bits(f: f64) -> (u64, f32) {
     let r = (f - 0.5) + ROUND_MAGIC;
@@ -97,6 +85,15 @@ fn lower_node_bits(f: f64) -> (u64, f32) {
     #[allow(clippy::cast_possible_truncation)]
     let w = ((f - node) as f32).clamp(0.0, 1.0);
     (r.to_bits() & ((1 << 51) - 1), w)
+}
+
+/// [`lower_node_bits`] with the node as an index (the one-pose reference sampler, tests).
+#[cfg(test)]
+#[inline]
+fn lower_node(f: f64) -> (usize, f32) {
+    let (node, w) = lower_node_bits(f);
+    #[allow(clippy::cast_possible_truncation)]
+    (node as usize, w)
 }
 
 /// Lanes of the chunked loops over poses (the compiler keeps a chunk in vector registers).
