@@ -566,7 +566,7 @@ impl TrackFilter {
             return;
         }
         // How well the cloud explains the snapshot: weighted per-term likelihood.
-        // Both exponentials first (a loop that vectorises), then the sums in order.
+        // Both exponentials first (a loop that vectorises), then the sum (`simd::lane_sums`).
         crate::simd::widest(
             #[inline(always)]
             || {
@@ -640,9 +640,9 @@ impl TrackFilter {
         // Heaviest 0.3 m cell.
         const CELL: f64 = 0.3;
         let floor = crate::readtable::floor_f64;
-        // A plain loop over a slice (a `collect` would call a fold that is not inlined into
-        // the wider instructions' variant).
-        // Cell coordinates as whole floats (conversions to integers do not vectorise).
+        // Cell coordinates as whole floats (conversions to integers do not vectorise), in a
+        // plain loop over a slice (a `collect` would call a fold that is not inlined into the
+        // wider instructions' variant).
         let mut keys = vec![(0.0, 0.0); self.poses.len()];
         crate::simd::widest(
             #[inline(always)]
@@ -729,7 +729,7 @@ enum CellWeights {
 
 impl CellWeights {
     /// The weights of the particles in cells `keys` (whole numbers, as floats), summed per cell
-    /// in the particles' order.
+    /// (in four interleaved partial sums).
     fn new(keys: &[(f64, f64)], weights: &[f64]) -> Self {
         let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
         for &(x, y) in keys {
