@@ -42,12 +42,13 @@ use rfloc_aria::{
     AriaClient, ClientConfig as AriaClientConfig, EmulatorConfig as RobotConfig, RobotEmulator,
 };
 use rfloc_kts::{
-    EmulatorConfig as ReaderConfig, KtsClient, KtsConfig, KtsEmulator, TagGrid, Uid, UidScheme,
+    EmulatorConfig as ReaderConfig, KtsClient, KtsConfig, KtsEmulator, ScanControl, TagGrid, Uid,
+    UidScheme,
 };
 use rfloc_pose::{angle_diff, EstimateMode, Pose2};
 use rfloc_sim::recorder::TrialRecorder;
 use rfloc_sim::{Point, Scenario};
-use rfloc_transport::{open, Recorder, SharedClock};
+use rfloc_transport::{open, CaptureSink, Recorder, SharedClock};
 use tokio_util::sync::CancellationToken;
 
 use super::ekfslam::lockstep::{read_all, LockstepBase};
@@ -174,6 +175,16 @@ impl TurnScript {
     }
 }
 
+/// Waits until the emulated reader has read and answered every byte the driver wrote, then
+/// until the driver has read every byte the emulator wrote (so the capture holds them all,
+/// stamped at the present simulated time).
+async fn settle_reader(control: &ScanControl, sink: &CaptureSink) -> anyhow::Result<()> {
+    let settled = tokio::time::timeout(STEP_TIMEOUT, control.settle(sink.tx_bytes()))
+        .await
+        .context("the emulated reader did not settle")??;
+    read_all(sink, settled.tx_bytes).await
+}
+
 /// Runs one trial.
 pub async fn run_trial(
     scenario: &Scenario,
@@ -281,10 +292,9 @@ pub async fn run_trial(
     let mut tags = kts.take_events().context("tag events")?;
     kts.start_scan().await.context("start scanning")?;
     // Its `OK` is read completely before the clock moves.
-    let settled = tokio::time::timeout(STEP_TIMEOUT, reader_control.settle(reader_sink.tx_bytes()))
+    settle_reader(&reader_control, &reader_sink)
         .await
-        .context("the emulated reader did not settle")??;
-    read_all(&reader_sink, settled.tx_bytes).await?;
+        .context("after the scan started")?;
 
     // The turn: eight 45° steps at the scenario's turn rate, pausing at each stop. Closed loop
     // on the driver's odometry, as a robot would do it.
@@ -382,10 +392,9 @@ pub async fn run_trial(
     // time): the emulator is settled and everything it wrote is read, so that every run
     // records the same bytes.
     let _ = kts.stop_scan().await;
-    let settled = tokio::time::timeout(STEP_TIMEOUT, reader_control.settle(reader_sink.tx_bytes()))
+    settle_reader(&reader_control, &reader_sink)
         .await
-        .context("the emulated reader did not settle after the scan stopped")??;
-    read_all(&reader_sink, settled.tx_bytes).await?;
+        .context("after the scan stopped")?;
     base.shutdown().await;
     drop(kts);
     stop.cancel();
