@@ -101,6 +101,29 @@ fn assert_same_mcap(a: &Path, b: &Path) {
     };
     let (x, y) = (messages(a), messages(b));
     assert!(x.len() > 10, "run.mcap has {} messages", x.len());
+    // `run.mcap` is written from the captures when the trial ends: it holds every byte record
+    // of the files as they are now (a capture still being written then would be cut short).
+    for (dir, msgs) in [(a, &x), (b, &y)] {
+        let links = msgs.iter().filter(|m| m.0 == "/rfloc/link").count();
+        let records: usize = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|e| e == "cap"))
+            .map(|p| {
+                let cap = rfloc_capture::Capture::from_path(&p).unwrap();
+                cap.records
+                    .iter()
+                    .filter(|r| !matches!(r.kind, rfloc_capture::RecordKind::Event(_)))
+                    .count()
+            })
+            .sum();
+        assert_eq!(
+            links,
+            records,
+            "{}: link messages in run.mcap against capture records",
+            dir.display()
+        );
+    }
     if let Some(i) = (0..x.len().max(y.len())).find(|i| x.get(*i) != y.get(*i)) {
         panic!(
             "run.mcap differs between runs with one seed at message {i}: {:?} vs {:?}",

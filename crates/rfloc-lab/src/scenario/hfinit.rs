@@ -268,6 +268,7 @@ pub async fn run_trial(
     let base = AriaClient::from_stream(base_io, base_config)
         .await
         .context("Pioneer handshake")?;
+    let base_flush = base_sink.clone();
     let base = LockstepBase::new(base, robot_control, truth.clone(), base_sink);
     let reader_sink = trial_capture(
         dir,
@@ -388,15 +389,19 @@ pub async fn run_trial(
         }
     }
     base.set_velocity(0.0, 0.0).await.ok();
-    // The reply may come after the driver stopped waiting for it (its timeout is on wall
-    // time): the emulator is settled and everything it wrote is read, so that every run
-    // records the same bytes.
-    let _ = kts.stop_scan().await;
+    // Then the emulator is settled and everything it wrote is read, so that every run records
+    // the same bytes.
+    kts.stop_scan().await.context("stop scanning")?;
     settle_reader(&reader_control, &reader_sink)
         .await
         .context("after the scan stopped")?;
     base.shutdown().await;
-    drop(kts);
+    // The driver's task owns the recorded link: wait until it has ended, which writes the
+    // capture's last (coalesced) record, and flush both captures before `run.mcap` reads them.
+    kts.close().await;
+    for (name, sink) in [("pioneer.cap", &base_flush), ("kts.cap", &reader_sink)] {
+        sink.flush().with_context(|| format!("flushing {name}"))?;
+    }
     stop.cancel();
     let _ = tokio::join!(robot_task, reader_task);
     drop((robot_slave, reader_slave));
