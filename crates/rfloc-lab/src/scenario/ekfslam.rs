@@ -95,9 +95,6 @@ mod rig;
 mod slip;
 
 use super::lockstep::LockstepBase;
-// The lock-step base lives in `scenario::lockstep` (seed 001 uses it too); re-exported for the
-// seed 002 trial, which imports it from here.
-pub(super) use super::lockstep;
 use probe::NdRssiProbe;
 use rig::{Rig, RigSettings};
 use slip::OdometrySlip;

@@ -23,7 +23,7 @@
 //!   emulator's true pose at that moment. The pipeline then keeps tracking until the end.
 //!
 //! Both emulators run in lock-step with the trial: per 100 ms tick the Pioneer simulates one
-//! SIP period (after handling every command the driver wrote, see `ekfslam::lockstep`), then
+//! SIP period (after handling every command the driver wrote, see `scenario::lockstep`), then
 //! the reader scans once at the new true pose (after answering every line the driver wrote);
 //! the trial waits for the tick's SIP and for every tag event of the scan, hands the pipeline
 //! the odometry first and then the scan's tag events, and sends its command. Times of truth,
@@ -51,7 +51,7 @@ use rfloc_sim::{Point, Scenario};
 use rfloc_transport::{open, CaptureSink, Recorder, SharedClock};
 use tokio_util::sync::CancellationToken;
 
-use super::ekfslam::lockstep::{read_all, LockstepBase};
+use super::lockstep::{read_all, LockstepBase, STEP_TIMEOUT};
 use super::SimOptions;
 use crate::sim::{pty_link, trial_capture, EmulatorClock};
 use rfloc_daemon::config::{GridTag, HfGridSettings};
@@ -63,8 +63,6 @@ const CAPTURE_NOTE: &str =
     "simulated seed 002 initialisation turn; timestamps are the Pioneer emulator's simulated seconds";
 /// Pause at each 45° stop, simulated seconds.
 const STOP_PAUSE_S: f64 = 0.5;
-/// How long the trial waits (wall time) for a scan or a tag event before it gives up.
-const STEP_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// A world tag's full ISO 15693 UID: short IDs (seed 002 Table 9 prints only the last hex
 /// digits) get the seed's UID prefix.

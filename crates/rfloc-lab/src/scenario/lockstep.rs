@@ -24,9 +24,9 @@ use anyhow::Context;
 use rfloc_aria::{AriaClient, ClientConfig, EmulatorHandle, EmulatorState, Odometry, StepControl};
 use rfloc_transport::{CaptureSink, SharedClock};
 
-/// How long a tick (barrier, simulation, SIP decoded) may take in wall time before the trial
-/// gives up.
-const STEP_TIMEOUT: Duration = Duration::from_secs(10);
+/// How long one lock-step exchange (a tick: barrier, simulation, SIP decoded; an emulated
+/// reader's scan or reply) may take in wall time before the trial gives up.
+pub(crate) const STEP_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// Waits until the driver recorded in `sink` has read `target` bytes (everything its emulator
 /// wrote). A driver may act on a message before its last byte is read (a line is complete at
