@@ -85,9 +85,9 @@ fn assert_same(a: &Path, b: &Path, files: &[&str]) -> usize {
     total
 }
 
-/// Asserts both trials' `run.mcap` hold the same messages (topic, log time, bytes) in the same
-/// order. (The files are not byte for byte the same: the MCAP writer lists the schemas of its
-/// summary in no fixed order.)
+/// Asserts both trials' `run.mcap` hold every capture record and the same messages (topic, log
+/// time, bytes) in the same order. (The files are not byte for byte the same: the MCAP writer
+/// lists the schemas of its summary in no fixed order.)
 fn assert_same_mcap(a: &Path, b: &Path) {
     let messages = |dir: &Path| -> Vec<(String, u64, Vec<u8>)> {
         let bytes = read(&dir.join("run.mcap"));
@@ -101,29 +101,8 @@ fn assert_same_mcap(a: &Path, b: &Path) {
     };
     let (x, y) = (messages(a), messages(b));
     assert!(x.len() > 10, "run.mcap has {} messages", x.len());
-    // `run.mcap` is written from the captures when the trial ends: it holds every byte record
-    // of the files as they are now (a capture still being written then would be cut short).
-    for (dir, msgs) in [(a, &x), (b, &y)] {
-        let links = msgs.iter().filter(|m| m.0 == "/rfloc/link").count();
-        let records: usize = std::fs::read_dir(dir)
-            .unwrap()
-            .map(|e| e.unwrap().path())
-            .filter(|p| p.extension().is_some_and(|e| e == "cap"))
-            .map(|p| {
-                let cap = rfloc_capture::Capture::from_path(&p).unwrap();
-                cap.records
-                    .iter()
-                    .filter(|r| !matches!(r.kind, rfloc_capture::RecordKind::Event(_)))
-                    .count()
-            })
-            .sum();
-        assert_eq!(
-            links,
-            records,
-            "{}: link messages in run.mcap against capture records",
-            dir.display()
-        );
-    }
+    assert_mcap_has_every_capture_record(a, &x);
+    assert_mcap_has_every_capture_record(b, &y);
     if let Some(i) = (0..x.len().max(y.len())).find(|i| x.get(*i) != y.get(*i)) {
         panic!(
             "run.mcap differs between runs with one seed at message {i}: {:?} vs {:?}",
@@ -131,6 +110,31 @@ fn assert_same_mcap(a: &Path, b: &Path) {
             y.get(i).map(|m| (&m.0, m.1))
         );
     }
+}
+
+/// `run.mcap` is written from the captures when the trial ends: it holds one link message per
+/// byte record of the files as they are now (a capture still being written then would be cut
+/// short).
+fn assert_mcap_has_every_capture_record(dir: &Path, messages: &[(String, u64, Vec<u8>)]) {
+    let links = messages.iter().filter(|m| m.0 == "/rfloc/link").count();
+    let records: usize = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "cap"))
+        .map(|p| {
+            let cap = rfloc_capture::Capture::from_path(&p).unwrap();
+            cap.records
+                .iter()
+                .filter(|r| !matches!(r.kind, rfloc_capture::RecordKind::Event(_)))
+                .count()
+        })
+        .sum();
+    assert_eq!(
+        links,
+        records,
+        "{}: link messages in run.mcap against capture records",
+        dir.display()
+    );
 }
 
 fn assert_captures_differ(a: &Path, b: &Path, files: &[&str]) {
