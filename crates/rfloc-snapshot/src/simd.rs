@@ -94,6 +94,50 @@ pub(crate) fn lane_sums<A, B, const K: usize>(
     out
 }
 
+/// [`lane_sums`] over `C` columns of equal length (structure of arrays: the loads are plain
+/// vector loads, where the fields of an array of structures need shuffles the compiler may not
+/// vectorise): the `K` sums over the rows `i` of `f([col₀[i], col₁[i], …])`, item `i` in
+/// partial `i mod 8` and the partials added in the same order, so the same bits as
+/// [`lane_sums`] over the rows. The shortest column decides the length.
+#[inline]
+pub(crate) fn lane_sums_columns<const C: usize, const K: usize>(
+    columns: [&[f64]; C],
+    f: impl Fn([f64; C]) -> [f64; K],
+) -> [f64; K] {
+    let acc = widest(
+        #[inline(always)]
+        || {
+            let mut acc = [[0.0_f64; SUM_LANES]; K];
+            let n = columns.iter().map(|c| c.len()).min().unwrap_or(0);
+            let cols = columns.map(|c| &c[..n]);
+            let whole = n - n % SUM_LANES;
+            let mut start = 0;
+            while start < whole {
+                let chunk = cols.map(|c| &c[start..start + SUM_LANES]);
+                for lane in 0..SUM_LANES {
+                    let row = chunk.map(|c| c[lane]);
+                    for (sum, v) in acc.iter_mut().zip(f(row)) {
+                        sum[lane] += v;
+                    }
+                }
+                start += SUM_LANES;
+            }
+            for (lane, i) in (whole..n).enumerate() {
+                let row = cols.map(|c| c[i]);
+                for (sum, v) in acc.iter_mut().zip(f(row)) {
+                    sum[lane] += v;
+                }
+            }
+            acc
+        },
+    );
+    let mut out = [0.0; K];
+    for (o, p) in out.iter_mut().zip(&acc) {
+        *o = ((p[0] + p[1]) + (p[2] + p[3])) + ((p[4] + p[5]) + (p[6] + p[7]));
+    }
+    out
+}
+
 /// The largest `f(x)` over `items` (`f64::max`: NaN values are ignored; −∞ when there are
 /// none), in 8 interleaved partial maxima: the same value as a plain fold, as the maximum does
 /// not depend on the order.

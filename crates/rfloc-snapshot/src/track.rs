@@ -314,34 +314,27 @@ pub(crate) fn exp(x: f64) -> f64 {
     }
 }
 
-/// [`wrap_angle`] without the library's `fmod` (which does not vectorise) for `|a| < 2²⁰`:
-/// bit-identical for `|a| < 2π` (`fmod` returns such an `a` unchanged, and `rem_euclid` then
-/// adds 2π to a negative one); beyond, `a` less the nearest multiple of 2π, within
-/// `|a|·2⁻⁵²` of it (particle headings are not wrapped by the motion model).
+/// [`wrap_angle`] without the library's `fmod` (which does not vectorise) and without a
+/// branch (so that loops over particles vectorise): bit-identical for `|a| < 2π` (`fmod`
+/// returns such an `a` unchanged, and `rem_euclid` then adds 2π to a negative one); up to
+/// `|a| < 2⁵¹`, `a` less the nearest multiple of 2π, within `|a|·2⁻⁵²` of it (particle headings
+/// are not wrapped by the motion model); beyond, where a heading has no fractional part left,
+/// some angle in `[−π, π]`; NaN for a NaN or an infinity.
 #[inline]
 fn wrap_small(a: f64) -> f64 {
     use std::f64::consts::{PI, TAU};
     let r = if a.abs() < TAU {
         a
-    } else if a.abs() < 1_048_576.0 {
-        a - crate::readtable::round_f64(a * (1.0 / TAU)) * TAU
     } else {
-        return wrap_far(a);
+        a - crate::readtable::round_f64(a * (1.0 / TAU)) * TAU
     };
     let r = if r < 0.0 { r + TAU } else { r };
-    if r > PI {
-        r - TAU
-    } else {
+    let r = if r > PI { r - TAU } else { r };
+    if r.abs() <= PI || r.is_nan() {
         r
+    } else {
+        r.clamp(-PI, PI)
     }
-}
-
-/// [`wrap_angle`] out of line: its remainder is an instruction the compiler may evaluate for
-/// every lane of a vectorised loop (through the library's `fmod`) when the branch is inline.
-#[cold]
-#[inline(never)]
-fn wrap_far(a: f64) -> f64 {
-    wrap_angle(a)
 }
 
 /// `sin θ`, `cos θ` by polynomials after reduction to `[−π/4, π/4]` (error below 1e−13;
@@ -640,19 +633,25 @@ impl TrackFilter {
         // Heaviest 0.3 m cell.
         const CELL: f64 = 0.3;
         let floor = crate::readtable::floor_f64;
-        // Cell coordinates as whole floats (conversions to integers do not vectorise), in a
-        // plain loop over a slice (a `collect` would call a fold that is not inlined into the
+        // The particles as columns (the sums below load them as whole vectors), then their
+        // cell coordinates as whole floats (conversions to integers do not vectorise), in
+        // plain loops over slices (a `collect` would call a fold that is not inlined into the
         // wider instructions' variant).
-        let mut keys = vec![(0.0, 0.0); self.poses.len()];
+        let n = self.poses.len();
+        let (mut xs, mut ys, mut ts) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        let (mut kx, mut ky) = (vec![0.0; n], vec![0.0; n]);
         crate::simd::widest(
             #[inline(always)]
             || {
-                for (k, p) in keys.iter_mut().zip(&self.poses) {
-                    *k = (floor(p.x / CELL), floor(p.y / CELL));
+                for (((x, y), t), p) in xs.iter_mut().zip(&mut ys).zip(&mut ts).zip(&self.poses) {
+                    (*x, *y, *t) = (p.x, p.y, p.theta);
+                }
+                for (((kx, ky), x), y) in kx.iter_mut().zip(&mut ky).zip(&xs).zip(&ys) {
+                    (*kx, *ky) = (floor(x / CELL), floor(y / CELL));
                 }
             },
         );
-        let cells = CellWeights::new(&keys, &self.weights);
+        let cells = CellWeights::new(&kx, &ky, &self.weights);
         // The cell whose 3×3 neighbourhood is heaviest (a diffuse mode beats a tight speck);
         // ties go to the smallest cell.
         let best = cells
@@ -665,13 +664,14 @@ impl TrackFilter {
         let r2 = self.config.estimate_radius.max(CELL).powi(2);
         // Three mean-shift steps; the heading and mass come from the last step's window.
         let mut window = None;
-        // Sums over the particles in interleaved partial sums (`simd::lane_sums`: they
-        // vectorise); a particle outside the window adds exact zeros (finite poses).
+        // Sums over the particles in interleaved partial sums (`simd::lane_sums_columns`:
+        // they vectorise); a particle outside the window adds exact zeros (finite poses).
+        let w = &self.weights[..];
         for _ in 0..3 {
-            let [sw, sx, sy] = crate::simd::lane_sums(&self.poses, &self.weights, |p, &w| {
-                let (dx, dy) = (p.x - cx, p.y - cy);
+            let [sw, sx, sy] = crate::simd::lane_sums_columns([&xs, &ys, w], |[x, y, w]| {
+                let (dx, dy) = (x - cx, y - cy);
                 let w = if dx * dx + dy * dy <= r2 { w } else { 0.0 };
-                [w, w * p.x, w * p.y]
+                [w, w * x, w * y]
             });
             if sw <= 0.0 {
                 break;
@@ -681,19 +681,19 @@ impl TrackFilter {
             cy = sy / sw;
         }
         let (wx, wy, mass) = window?;
-        let [ss, sc] = crate::simd::lane_sums(&self.poses, &self.weights, |p, &w| {
-            let (dx, dy) = (p.x - wx, p.y - wy);
+        let [ss, sc] = crate::simd::lane_sums_columns([&xs, &ys, &ts, w], |[x, y, t, w]| {
+            let (dx, dy) = (x - wx, y - wy);
             let w = if dx * dx + dy * dy <= r2 { w } else { 0.0 };
-            let (s, c) = sincos(p.theta);
+            let (s, c) = sincos(t);
             [w * s, w * c]
         });
         let theta = wrap_angle(ss.atan2(sc));
         let [var, xx, xy, xt, yy, yt, tt] =
-            crate::simd::lane_sums(&self.poses, &self.weights, |p, &w| {
-                let (ex, ey) = (p.x - cx, p.y - cy);
+            crate::simd::lane_sums_columns([&xs, &ys, &ts, w], |[x, y, t, w]| {
+                let (ex, ey) = (x - cx, y - cy);
                 let d2 = ex * ex + ey * ey;
                 let w = if d2 <= r2 { w } else { 0.0 };
-                let et = wrap_small(p.theta - theta);
+                let et = wrap_small(t - theta);
                 [
                     w * d2,
                     w * ex * ex,
@@ -728,30 +728,56 @@ enum CellWeights {
 }
 
 impl CellWeights {
-    /// The weights of the particles in cells `keys` (whole numbers, as floats), summed per cell
-    /// (in four interleaved partial sums).
-    fn new(keys: &[(f64, f64)], weights: &[f64]) -> Self {
-        let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
-        for &(x, y) in keys {
-            x0 = x0.min(x);
-            y0 = y0.min(y);
-            x1 = x1.max(x);
-            y1 = y1.max(y);
-        }
+    /// The weights of the particles in cells `(kx, ky)` (whole numbers, as floats), summed per
+    /// cell (in four interleaved partial sums).
+    fn new(kx: &[f64], ky: &[f64], weights: &[f64]) -> Self {
+        let n = kx.len().min(ky.len()).min(weights.len());
+        let (kx, ky, weights) = (&kx[..n], &ky[..n], &weights[..n]);
+        // The bounding box (`lane_max`: vectorised; keys that are not a number are left out).
+        let (x0, x1) = (
+            -crate::simd::lane_max(kx, |&x| -x),
+            crate::simd::lane_max(kx, |&x| x),
+        );
+        let (y0, y1) = (
+            -crate::simd::lane_max(ky, |&y| -y),
+            crate::simd::lane_max(ky, |&y| y),
+        );
         let (nx, ny) = (x1 - x0 + 1.0, y1 - y0 + 1.0);
         if x0 <= x1 && nx <= 256.0 && ny <= 256.0 {
+            // Each particle's cell index (a whole number below 2¹⁶, exact in its float's low
+            // mantissa bits after adding 2⁵²: no float-to-integer conversion, so the loop
+            // vectorises), and its weight; a particle whose key is not finite goes to cell 0
+            // with weight 0, which adds nothing.
+            const TWO_52: f64 = 4_503_599_627_370_496.0;
+            let mut index = vec![0_u64; n];
+            let mut mass = vec![0.0; n];
+            crate::simd::widest(
+                #[inline(always)]
+                || {
+                    for (((i, m), (&x, &y)), &v) in index
+                        .iter_mut()
+                        .zip(&mut mass)
+                        .zip(kx.iter().zip(ky))
+                        .zip(weights)
+                    {
+                        let finite = x.is_finite() && y.is_finite();
+                        let f = (y - y0) * nx + (x - x0);
+                        (*i, *m) = if finite {
+                            ((f + TWO_52).to_bits() & 0xFFFF_FFFF, v)
+                        } else {
+                            (0, 0.0)
+                        };
+                    }
+                },
+            );
             let (nx, ny) = (nx as usize, ny as usize);
             // Four interleaved histograms (particle `j` into the `j mod 4`-th), added at the
             // end: consecutive particles in one cell (runs of resampled copies) do not wait
-            // for each other's sums. (Keys that are not finite are left out.)
+            // for each other's sums.
             let cells = nx * ny;
             let mut parts = vec![0.0; 4 * cells];
-            for (j, (&(x, y), &v)) in keys.iter().zip(weights).enumerate() {
-                if !(x.is_finite() && y.is_finite()) {
-                    continue;
-                }
-                let i = ((y - y0) * nx as f64 + (x - x0)) as usize;
-                if let Some(c) = parts.get_mut((j % 4) * cells + i) {
+            for (j, (&i, &v)) in index.iter().zip(&mass).enumerate() {
+                if let Some(c) = parts.get_mut((j % 4) * cells + i as usize) {
                     *c += v;
                 }
             }
@@ -768,7 +794,7 @@ impl CellWeights {
             }
         } else {
             let mut cells = std::collections::HashMap::new();
-            for (&(x, y), &v) in keys.iter().zip(weights) {
+            for ((&x, &y), &v) in kx.iter().zip(ky).zip(weights) {
                 *cells.entry((x as i64, y as i64)).or_insert(0.0) += v;
             }
             Self::Sparse(cells)
@@ -1020,6 +1046,27 @@ mod tests {
         assert!(exp(f64::NAN).is_nan());
     }
 
+    /// Cell weights: summed per cell; a key that is not a number adds nothing and does not
+    /// widen the box; an infinite key sends every weight to the sparse map.
+    #[test]
+    fn cell_weights_sum_per_cell_and_skip_keys_that_are_not_numbers() {
+        let kx = [2.0, 3.0, 2.0, f64::NAN, -1.0];
+        let ky = [5.0, 5.0, 5.0, 5.0, 7.0];
+        let w = [0.25, 0.125, 0.5, 1.0, 0.0625];
+        let cells = CellWeights::new(&kx, &ky, &w);
+        assert!(matches!(cells, CellWeights::Dense { nx: 5, ny: 3, .. }));
+        assert_eq!(cells.get((2, 5)), 0.75);
+        assert_eq!(cells.get((3, 5)), 0.125);
+        assert_eq!(cells.get((-1, 7)), 0.0625);
+        assert_eq!(cells.get((0, 0)), 0.0);
+        let mut occupied: Vec<_> = cells.occupied().collect();
+        occupied.sort_unstable();
+        assert_eq!(occupied, [(-1, 7), (2, 5), (3, 5)]);
+        let far = CellWeights::new(&[0.0, f64::INFINITY], &[0.0, 0.0], &[0.5, 0.5]);
+        assert!(matches!(far, CellWeights::Sparse(_)));
+        assert_eq!(far.get((0, 0)), 0.5);
+    }
+
     #[test]
     fn wrap_small_is_wrap_angle() {
         // Bit-identical within one turn.
@@ -1027,16 +1074,14 @@ mod tests {
             let a = f64::from(i) * 0.002_71;
             assert_eq!(wrap_small(a).to_bits(), wrap_angle(a).to_bits(), "{a}");
         }
-        for a in [
-            0.0,
-            -0.0,
-            std::f64::consts::PI,
-            -std::f64::consts::PI,
-            1e7,
-            f64::NAN,
-            f64::INFINITY,
-        ] {
+        for a in [0.0, -0.0, std::f64::consts::PI, -std::f64::consts::PI] {
             assert_eq!(wrap_small(a).to_bits(), wrap_angle(a).to_bits(), "{a}");
+        }
+        assert!(wrap_small(f64::NAN).is_nan() && wrap_small(f64::INFINITY).is_nan());
+        // Far out: a heading with no fractional part left still wraps into [−π, π].
+        for a in [1e7, -3.3e9, 2.0e15, 1e300, -1e300] {
+            let w = wrap_small(a);
+            assert!(w.abs() <= std::f64::consts::PI, "{a}: {w}");
         }
         // Beyond, within rounding of the same angle, and in (−π, π].
         for i in -200_000..200_000 {
