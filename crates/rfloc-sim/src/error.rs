@@ -90,8 +90,36 @@ pub(crate) fn from_toml(path: &std::path::Path, text: &str, err: &toml::de::Erro
     }
 }
 
-/// Line on which `key = …` (or the header `[key]`) is first written, 0 when absent.
+/// Line on which the dotted `key` is written (from the parser's spans: `goal.x` is the `x` of
+/// `[goal]`, not the first `x =` of the file), else where `key = …` or `[key]` first appears
+/// (a key the spans do not find), 0 when absent.
 pub(crate) fn find_key_line(text: &str, key: &str) -> usize {
+    spanned_key_line(text, key).unwrap_or_else(|| first_key_line(text, key))
+}
+
+/// The line of the dotted `key`'s name, by walking the parsed tables with their spans.
+fn spanned_key_line(text: &str, key: &str) -> Option<usize> {
+    use toml::de::{DeTable, DeValue};
+    let root = DeTable::parse(text).ok()?;
+    let mut table: &DeTable<'_> = root.get_ref();
+    let mut span = None;
+    let mut parts = key.split('.').peekable();
+    while let Some(part) = parts.next() {
+        let (k, v) = table.iter().find(|(k, _)| k.get_ref().as_ref() == part)?;
+        span = Some(k.span());
+        if parts.peek().is_some() {
+            match v.get_ref() {
+                DeValue::Table(t) => table = t,
+                _ => return None,
+            }
+        }
+    }
+    let start = span?.start;
+    Some(text.get(..start)?.matches('\n').count() + 1)
+}
+
+/// Line on which `key = …` (or the header `[key]`) is first written, 0 when absent.
+fn first_key_line(text: &str, key: &str) -> usize {
     let last = key.rsplit('.').next().unwrap_or(key);
     let mut fallback = 0;
     for (i, l) in text.lines().enumerate() {

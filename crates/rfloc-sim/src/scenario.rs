@@ -281,6 +281,17 @@ impl Scenario {
                 ));
             }
         }
+        // Every number in its range (a key without one at least finite).
+        for (key, v) in crate::keys::numbers(&table) {
+            let ok = crate::keys::range_of(&key).map_or(v.is_finite(), |r| r.contains(v));
+            if !ok {
+                let why = crate::keys::range_of(&key).map_or_else(
+                    || "must be a finite number".to_string(),
+                    |r| r.requirement(),
+                );
+                return Err(invalid(p, text, &key, format!("{v}: {why}")));
+            }
+        }
         if let Some(r) = &sp.seed_reference {
             if crate::published::for_scenario(r).is_none() {
                 return Err(invalid(
@@ -412,6 +423,32 @@ impl Scenario {
                     text,
                     "goal",
                     format!("({}, {}) is inside an obstacle", g.x, g.y),
+                ));
+            }
+        }
+        // The emitter trials home on the world's emitter and judge arrival at the goal: the
+        // two must be one place.
+        if let (Pipeline::EmitterPreliminary | Pipeline::EmitterFull, Some(g), Some(e)) =
+            (sp.pipeline, sp.goal, &self.world.emitter)
+        {
+            let d = (g.x - e.position.x).hypot(g.y - e.position.y);
+            if g.random || !(d <= g.tolerance_m) {
+                return Err(invalid(
+                    p,
+                    text,
+                    "goal",
+                    format!(
+                        "the {} trial's goal is the emitter at ({}, {}); this goal is {} \
+                         (give the emitter's position, not random)",
+                        crate::keys::pipeline_name(sp.pipeline),
+                        e.position.x,
+                        e.position.y,
+                        if g.random {
+                            "random".to_string()
+                        } else {
+                            format!("{d:.2} m from it, beyond its {} m tolerance", g.tolerance_m)
+                        }
+                    ),
                 ));
             }
         }

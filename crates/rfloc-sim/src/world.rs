@@ -62,6 +62,11 @@ pub struct PolylineSpec {
     pub points: Vec<[f64; 2]>,
 }
 
+/// Longest side of a world's area, metres (a 10 km floor; simulators and planners grid it).
+pub const MAX_SIDE_M: f64 = 10_000.0;
+/// Farthest a world's corner may lie from the origin, metres.
+pub const MAX_COORDINATE_M: f64 = 1.0e6;
+
 /// `[uhf_tags]`: explicit tags and/or a seeded random placement.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -249,6 +254,21 @@ impl World {
                 text,
                 "area",
                 "max must be finite and greater than min",
+            ));
+        }
+        // The largest floor a trial models (the simulators and planners grid it).
+        let within = |v: f64| v.abs() <= MAX_COORDINATE_M;
+        if max[0] - min[0] > MAX_SIDE_M
+            || max[1] - min[1] > MAX_SIDE_M
+            || !min.iter().chain(&max).all(|&v| within(v))
+        {
+            return Err(invalid(
+                path,
+                text,
+                "area",
+                format!(
+                    "each side at most {MAX_SIDE_M} m, corners within {MAX_COORDINATE_M} m of the origin"
+                ),
             ));
         }
         let mut world = World {

@@ -295,3 +295,20 @@ fn same_seed_same_run_and_report() {
         assert!(plot.contains(label), "{label}");
     }
 }
+
+/// Every number the scenario files write (outside `[world]`) has a range of its own, so a
+/// key added later is not left with only the finiteness check.
+#[test]
+fn every_number_the_scenarios_write_has_a_range() {
+    for entry in std::fs::read_dir(scenarios_dir()).unwrap() {
+        let p = entry.unwrap().path();
+        if p.extension().is_some_and(|e| e == "toml") {
+            let table: toml::Table = toml::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
+            for (key, v) in rfloc_sim::keys::numbers(&table) {
+                let range = rfloc_sim::keys::range_of(&key)
+                    .unwrap_or_else(|| panic!("{}: `{key}` has no range", p.display()));
+                assert!(range.contains(v), "{}: {key} = {v}", p.display());
+            }
+        }
+    }
+}

@@ -139,3 +139,111 @@ fn inconsistent_worlds_and_goals_are_rejected() {
         invalid(&EKF.replace("name = \"t\"", "name = \"t\"\nseed_reference = \"seed009\""));
     assert_eq!((line, key.as_str()), (2, "seed_reference"));
 }
+
+/// Every number outside its range (a NaN, an infinity, a negative noise, an absurd count) is
+/// rejected on load with the line of its own key, not only the first line with that name.
+#[test]
+fn numbers_out_of_range_are_rejected_at_their_own_line() {
+    let cases = [
+        (
+            EKF,
+            "sigma_v = 0.0119",
+            "sigma_v = -1.0",
+            11,
+            "robot.drive.sigma_v",
+        ),
+        (
+            EKF,
+            "sigma_v = 0.0119",
+            "sigma_v = nan",
+            11,
+            "robot.drive.sigma_v",
+        ),
+        (
+            EKF,
+            "axle_track = 0.331",
+            "axle_track = 0.0",
+            11,
+            "robot.drive.axle_track",
+        ),
+        (
+            EKF,
+            "sweep_steps = 40",
+            "sweep_steps = 4294967297",
+            14,
+            "params.sweep_steps",
+        ),
+        (
+            EKF,
+            "[params]",
+            "[params]\nwaypoint_switch_m = -inf",
+            14,
+            "params.waypoint_switch_m",
+        ),
+        (
+            EKF,
+            "[[2.0, 2.0], [2.0, 7.0]]",
+            "[[2.0, 2.0], [inf, 7.0]]",
+            7,
+            "waypoints",
+        ),
+        (
+            EKF,
+            "start = { x = 1.0",
+            "start = { x = 1.0, theta_deg = nan",
+            10,
+            "robot.start.theta_deg",
+        ),
+        (
+            EMITTER,
+            "tolerance_m = 0.5",
+            "tolerance_m = -0.5",
+            14,
+            "goal.tolerance_m",
+        ),
+        (
+            EMITTER,
+            "y = 0.0\ntolerance",
+            "y = nan\ntolerance",
+            13,
+            "goal.y",
+        ),
+        (
+            EMITTER,
+            "seed = 5",
+            "seed = 5\n[params]\nparticles = 4294967297",
+            8,
+            "params.particles",
+        ),
+    ];
+    for (base, from, to, line, key) in cases {
+        assert!(base.contains(from), "{from}");
+        let (l, k, msg) = invalid(&base.replacen(from, to, 1));
+        assert_eq!((l, k.as_str()), (line, key), "{to}: {msg}");
+        assert!(msg.contains("must be"), "{to}: {msg}");
+    }
+    // The limits themselves are values.
+    load(&EKF.replace("sigma_v = 0.0119", "sigma_v = 0.0")).unwrap();
+}
+
+/// The emitter trials home on the world's emitter: a goal elsewhere, or a random one, would
+/// judge arrival at a place the robot was never sent to.
+#[test]
+fn an_emitter_goal_away_from_the_emitter_is_rejected() {
+    let (line, key, msg) = invalid(&EMITTER.replacen("x = 4.0\ny = 0.0", "x = -0.5\ny = 0.0", 1));
+    assert_eq!((line, key.as_str()), (11, "goal"), "{msg}");
+    assert!(msg.contains("4.50 m from it"), "{msg}");
+    let (_, key, msg) =
+        invalid(&EMITTER.replacen("tolerance_m = 0.5", "tolerance_m = 0.5\nrandom = true", 1));
+    assert_eq!(key, "goal", "{msg}");
+    load(&EMITTER.replacen("x = 4.0\ny = 0.0", "x = 4.3\ny = 0.0", 1)).unwrap();
+}
+
+/// A world larger than any floor a trial models is rejected at its `area` line (its grids
+/// would not fit in memory).
+#[test]
+fn an_area_beyond_ten_kilometres_is_rejected() {
+    let (line, key, msg) = invalid(&EKF.replace("max = [9.0, 9.0]", "max = [9.0, 4294967297]"));
+    assert_eq!((line, key.as_str()), (17, "area"), "{msg}");
+    assert!(msg.contains("at most 10000 m"), "{msg}");
+}

@@ -64,6 +64,10 @@ impl ActionModel {
     }
 }
 
+/// Most lattice points (cells × headings) a plan holds, about 200 MB of values and costs; a
+/// 0.15 m × 11.25° lattice of this size covers about 75 m × 75 m.
+pub const MAX_LATTICE_STATES: f64 = 8.0e6;
+
 /// Lattice and cost settings.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct LatticeConfig {
@@ -147,20 +151,46 @@ impl LatticePlan {
         goal_radius: f64,
         config: LatticeConfig,
     ) -> Self {
-        let cell = config.cell.max(0.01);
+        let mut cell = config.cell.max(0.01);
         let pad = config.known_radius + cell;
-        let (mut xmin, mut ymin, mut xmax, mut ymax) = (goal.0, goal.1, goal.0, goal.1);
-        for p in explored {
-            xmin = xmin.min(p.x);
-            ymin = ymin.min(p.y);
-            xmax = xmax.max(p.x);
-            ymax = ymax.max(p.y);
+        // The box of the explored poses and the goal (points that are not finite left out).
+        let (mut xmin, mut ymin, mut xmax, mut ymax) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+        let finite = |x: f64, y: f64| x.is_finite() && y.is_finite();
+        for (x, y) in explored
+            .iter()
+            .map(|p| (p.x, p.y))
+            .chain(std::iter::once(goal))
+            .filter(|&(x, y)| finite(x, y))
+        {
+            (xmin, ymin) = (xmin.min(x), ymin.min(y));
+            (xmax, ymax) = (xmax.max(x), ymax.max(y));
+        }
+        if xmin > xmax {
+            (xmin, ymin, xmax, ymax) = (0.0, 0.0, 0.0, 0.0);
         }
         let x0 = xmin - pad;
         let y0 = ymin - pad;
+        let nh = config.headings.clamp(4, 360);
+        // A lattice of at most `MAX_LATTICE_STATES` (a goal or a survey pose far beyond the
+        // floor would otherwise ask for more memory than the computer has): coarser cells.
+        let states = |cell: f64| {
+            ((xmax + pad - x0) / cell + 2.0) * ((ymax + pad - y0) / cell + 2.0) * nh as f64
+        };
+        if states(cell) > MAX_LATTICE_STATES {
+            let fine = cell;
+            while states(cell) > MAX_LATTICE_STATES {
+                cell *= 1.25;
+            }
+            tracing::warn!(
+                width_m = xmax - xmin,
+                height_m = ymax - ymin,
+                cell_m = cell,
+                configured_cell_m = fine,
+                "lattice plan over a large floor: cells coarsened to stay within {MAX_LATTICE_STATES} states"
+            );
+        }
         let nx = (((xmax + pad - x0) / cell).ceil() as usize).max(1) + 1;
         let ny = (((ymax + pad - y0) / cell).ceil() as usize).max(1) + 1;
-        let nh = config.headings.max(4);
         let mut known = vec![false; nx * ny];
         let mark = |grid: &mut Vec<bool>, p: &Pose2, r: f64| {
             let r_cells = (r / cell).ceil() as i64;
@@ -481,6 +511,29 @@ mod tests {
         assert_eq!(m.samples, [2, 0, 0, 0, 0]);
         assert!((m.increment(Action::Forward).x - 0.2).abs() < 1e-12);
         assert_eq!(m.increment(Action::RotateLeft), Pose2::default());
+    }
+
+    /// A goal (or a survey pose) far beyond the floor does not ask for a lattice larger than
+    /// the computer: the cells are coarsened to stay within `MAX_LATTICE_STATES`, and points
+    /// that are not finite are left out of the box.
+    #[test]
+    fn a_far_goal_gets_coarser_cells_not_an_enormous_lattice() {
+        let m = model();
+        let config = LatticeConfig {
+            max_sweeps: 2,
+            ..LatticeConfig::default()
+        };
+        let near = LatticePlan::solve(m, &floor(), &[], (3.5, 3.5), 0.2, config);
+        assert_eq!(near.config.cell, config.cell);
+        let mut explored = floor();
+        explored.push(Pose2::new(f64::NAN, 1.0, 0.0));
+        let far = LatticePlan::solve(m, &explored, &[], (4.0e6, -3.0), 0.2, config);
+        let states = far.nx * far.ny * far.config.headings;
+        #[allow(clippy::cast_precision_loss)]
+        let within = states as f64 <= MAX_LATTICE_STATES;
+        assert!(within, "{states} states");
+        assert!(far.config.cell > 10.0, "cell {}", far.config.cell);
+        assert!(far.value_at(&Pose2::new(1.0, 1.0, 0.0)).is_finite());
     }
 
     #[test]

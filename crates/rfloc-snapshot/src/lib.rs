@@ -43,7 +43,7 @@ pub use database::{
 };
 pub use filter::{FilterConfig, StateFilter};
 pub use joint::{learn_jointly, JointConfig, JointReport};
-pub use lattice::{ActionModel, LatticeConfig, LatticePlan};
+pub use lattice::{ActionModel, LatticeConfig, LatticePlan, MAX_LATTICE_STATES};
 pub use navigate::{NavCommand, NavReason, Navigator, NavigatorConfig, Plan, PlanConfig};
 pub use survey::{Survey, SurveySample, SURVEY_FORMAT_VERSION};
 pub use tagmap::{LikelihoodScratch, MapObservation, MappedTag, ReadModel, TagMap, TagMapConfig};
