@@ -285,9 +285,9 @@ impl KtsEmulator {
     where
         T: AsyncRead + AsyncWrite + Unpin + Send + 'static,
     {
+        let mut reader = self;
         tokio::spawn(
-            self.serve(io)
-                .instrument(tracing::info_span!("kts-emulator")),
+            async move { reader.serve(io).await }.instrument(tracing::info_span!("kts-emulator")),
         )
     }
 
@@ -295,7 +295,23 @@ impl KtsEmulator {
     ///
     /// # Errors
     /// I/O errors of the stream.
-    pub async fn serve<T>(mut self, io: T) -> std::io::Result<()>
+    pub async fn serve<T>(&mut self, io: T) -> std::io::Result<()>
+    where
+        T: AsyncRead + AsyncWrite + Unpin + Send,
+    {
+        // The reader outlives the link (a client may connect again, to the same reader in the
+        // same mode); so does its lock-step control.
+        let mut steps = self.steps.take();
+        let served = self.serve_link(io, &mut steps).await;
+        self.steps = steps;
+        served
+    }
+
+    async fn serve_link<T>(
+        &mut self,
+        io: T,
+        steps: &mut Option<mpsc::Receiver<ScanRequest>>,
+    ) -> std::io::Result<()>
     where
         T: AsyncRead + AsyncWrite + Unpin + Send,
     {
@@ -314,7 +330,6 @@ impl KtsEmulator {
             .max(Duration::from_micros(100));
         let mut ticker = tokio::time::interval(period);
         ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-        let mut steps = self.steps.take();
         let wall_clock = steps.is_none();
         let mut pending: Option<ScanRequest> = None;
         loop {
@@ -355,9 +370,9 @@ impl KtsEmulator {
                     }
                     self.rx_bytes += n as u64;
                 }
-                req = next_scan(&mut steps), if !wall_clock && pending.is_none() => match req {
+                req = next_scan(steps), if !wall_clock && pending.is_none() => match req {
                     Some(req) => pending = Some(req),
-                    None => steps = None,
+                    None => *steps = None,
                 },
                 _ = ticker.tick(), if wall_clock && self.scanning => {
                     let report = self.scan_report();

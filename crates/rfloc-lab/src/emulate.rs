@@ -107,7 +107,7 @@ pub async fn run(opts: EmulateOptions) -> anyhow::Result<()> {
 /// The emulated device, ready to serve one link after another.
 enum Server {
     Aria(Box<rfloc_aria::RobotEmulator>),
-    Kts(Option<Box<rfloc_kts::KtsEmulator>>),
+    Kts(Box<rfloc_kts::KtsEmulator>),
     Alien(rfloc_alien::ReaderEmulator),
     Xbee(rfloc_xbee::CoordinatorEmulator),
     Urg(rfloc_urg::UrgEmulator),
@@ -146,7 +146,7 @@ impl Server {
                 let antenna = Arc::new(move || (pose.x, pose.y));
                 let mut config = rfloc_kts::EmulatorConfig::new(grid, antenna);
                 config.seed = opts.seed;
-                Self::Kts(Some(Box::new(rfloc_kts::KtsEmulator::new(config))))
+                Self::Kts(Box::new(rfloc_kts::KtsEmulator::new(config)))
             }
             EmulatedDevice::Alien => {
                 let field: rfloc_alien::TagField = match scenario {
@@ -252,10 +252,7 @@ impl Server {
     async fn serve<S: Link>(&mut self, link: S) -> anyhow::Result<bool> {
         match self {
             Self::Aria(robot) => robot.serve(link).await.map(|_| true).map_err(Into::into),
-            Self::Kts(slot) => match slot.take() {
-                Some(reader) => reader.serve(link).await.map(|()| false).map_err(Into::into),
-                None => Ok(false),
-            },
+            Self::Kts(reader) => reader.serve(link).await.map(|()| true).map_err(Into::into),
             Self::Alien(reader) => reader
                 .serve_stream(link)
                 .await

@@ -432,7 +432,7 @@ impl Scenario {
             (sp.pipeline, sp.goal, &self.world.emitter)
         {
             let d = (g.x - e.position.x).hypot(g.y - e.position.y);
-            if g.random || !(d <= g.tolerance_m) {
+            if g.random || d > g.tolerance_m {
                 return Err(invalid(
                     p,
                     text,

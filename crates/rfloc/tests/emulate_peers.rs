@@ -177,3 +177,54 @@ fn the_emulated_pioneer_syncs_on_its_tcp_port() {
         assert_eq!(head[3], sync, "SYNC{sync} echoed");
     }
 }
+
+/// A TCP emulator serves one client after another (as its help says): a client that sends
+/// garbage and leaves, then one that asks properly and gets the device's answer. (The HF
+/// reader used to serve its first client only and then close its port.)
+#[test]
+fn every_emulator_serves_a_second_client_after_a_garbage_one() {
+    let answers: [(&str, &[u8], &[u8]); 5] = [
+        ("aria", &[0xFA, 0xFB, 0x03, 0x00, 0x00, 0x00], &[0xFA, 0xFB]),
+        ("kts", b"AT\r", b"OK\r\n"),
+        ("alien", b"", b"Username>"),
+        ("urg", b"VV\n", b"VV\n00P\n"),
+        // Local `NI` in API mode 2: the AT command response frame (0x88, frame id 1).
+        (
+            "xbee",
+            &[0x7E, 0x00, 0x04, 0x08, 0x01, 0x4E, 0x49, 0x5F],
+            &[0x7E, 0x00],
+        ),
+    ];
+    let garbage: Vec<u8> = (0..3000_u32)
+        .map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8)
+        .collect();
+    for (device, request, expected) in answers {
+        let port = std::net::TcpListener::bind("127.0.0.1:0")
+            .unwrap()
+            .local_addr()
+            .unwrap()
+            .port();
+        let _emulator = Emulator::start(&[device, "--tcp", &format!("127.0.0.1:{port}")]);
+        for round in 0..3 {
+            let mut first = std::net::TcpStream::connect(("127.0.0.1", port))
+                .unwrap_or_else(|e| panic!("{device}, round {round}: {e}"));
+            first.write_all(&garbage).unwrap();
+            drop(first);
+            let mut client = std::net::TcpStream::connect(("127.0.0.1", port))
+                .unwrap_or_else(|e| panic!("{device}, round {round}, second client: {e}"));
+            client
+                .set_read_timeout(Some(Duration::from_secs(5)))
+                .unwrap();
+            client.write_all(request).unwrap();
+            let mut got = Vec::new();
+            let mut buf = [0u8; 512];
+            while !got.windows(expected.len()).any(|w| w == expected) {
+                let n = client
+                    .read(&mut buf)
+                    .unwrap_or_else(|e| panic!("{device}, round {round}: {e}; got {got:?}"));
+                assert!(n > 0, "{device}, round {round}: closed; got {got:?}");
+                got.extend_from_slice(&buf[..n]);
+            }
+        }
+    }
+}

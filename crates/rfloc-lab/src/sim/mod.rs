@@ -350,8 +350,10 @@ pub async fn start(cfg: &mut RobotConfig) -> anyhow::Result<SimRuntime> {
         kcfg.time_scale = sim.time_scale;
         kcfg.seed = sim.seed;
         kcfg.miss_probability = 0.1;
-        let emulator = KtsEmulator::new(kcfg);
-        runtime.serve_until_stopped("HF reader emulator ended", emulator.serve(master));
+        let mut emulator = KtsEmulator::new(kcfg);
+        runtime.serve_until_stopped("HF reader emulator ended", async move {
+            emulator.serve(master).await
+        });
         tracing::info!(device = %device.name, link = %link.describe(), "emulated KTS reader on a pty");
         device.link = Some(link);
         runtime._slaves.push(slave);
