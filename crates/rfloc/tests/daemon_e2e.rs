@@ -62,7 +62,7 @@ async fn daemon_publishes_reconnects_and_stops_the_robot() {
             let mut kill = kill_rx.clone();
             kill.borrow_and_update();
             let antenna = Arc::new(|| (0.1, 0.1));
-            let emulator =
+            let mut emulator =
                 KtsEmulator::new(ReaderConfig::new(TagGrid::seed002_test_field(), antenna));
             tokio::spawn(async move {
                 tokio::select! {
