@@ -516,8 +516,15 @@ impl World {
     }
 
     fn resolve_hf_grid(&mut self, g: &HfGridSpec, text: &str, path: &Path) -> Result<(), SimError> {
-        if !(g.pitch.is_finite() && g.pitch > 0.0) {
-            return Err(invalid(path, text, "hf_grid.pitch", "must be positive"));
+        // HF tags a reader tells apart (its field is a few centimetres across), on a floor
+        // the area can hold.
+        if !(g.pitch.is_finite() && (0.01..=100.0).contains(&g.pitch)) {
+            return Err(invalid(
+                path,
+                text,
+                "hf_grid.pitch",
+                "must be from 0.01 to 100 m",
+            ));
         }
         let n = g
             .rows
@@ -679,6 +686,22 @@ ni = "beacon1"
         let c =
             World::from_toml_str(&SMALL.replace("seed = 7", "seed = 8"), Path::new("c")).unwrap();
         assert_ne!(a.uhf_tags, c.uhf_tags);
+    }
+
+    /// A pitch no reader tells apart (all tags at one point) and a floor beyond 10 km are
+    /// errors at their lines.
+    #[test]
+    fn an_hf_pitch_or_an_area_out_of_range_is_rejected() {
+        for pitch in ["1e-320", "0.001", "-0.1", "nan", "1000.0"] {
+            let bad = SMALL.replace("pitch = 0.1", &format!("pitch = {pitch}"));
+            let msg = World::from_toml_str(&bad, Path::new("w.toml"))
+                .unwrap_err()
+                .to_string();
+            assert!(msg.starts_with("w.toml:15:"), "{pitch}: {msg}");
+            assert!(msg.contains("hf_grid.pitch"), "{pitch}: {msg}");
+        }
+        let far = SMALL.replacen("max = [", "max = [20000.0, 1.0] # was [", 1);
+        assert!(World::from_toml_str(&far, Path::new("w.toml")).is_err());
     }
 
     #[test]
