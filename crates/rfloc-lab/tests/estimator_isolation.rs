@@ -108,10 +108,20 @@ async fn run_once(pipeline: TestPipeline, notify: &std::os::unix::net::UnixDatag
     ));
     // A client that joins 2 s into the run, while the estimator is far behind.
     tokio::time::sleep(Duration::from_secs(2)).await;
+    // The daemon binds its port while it starts; on a loaded machine that can take longer
+    // than the 2 s above, so the client retries for up to 10 s more.
+    let mut attempt = 0;
+    let stream = loop {
+        match tokio::net::TcpStream::connect(("127.0.0.1", port)).await {
+            Ok(s) => break s,
+            Err(_) if attempt < 200 => {
+                attempt += 1;
+                tokio::time::sleep(Duration::from_millis(50)).await;
+            }
+            Err(e) => panic!("the daemon did not listen on {port} within 12 s: {e}"),
+        }
+    };
     let joined = Instant::now();
-    let stream = tokio::net::TcpStream::connect(("127.0.0.1", port))
-        .await
-        .unwrap();
     let mut lines = tokio::io::BufReader::new(stream).lines();
     let mut seen = Seen::default();
     let mut greeted = false;

@@ -2,8 +2,9 @@
 //!
 //! The pipeline owns the decisions and no I/O. On every odometry event it predicts, then
 //! (with waypoints) runs the waypoint controller on the estimate and asks the daemon to drive
-//! the base. After `sweep_every_s` of driving it stops the base, waits until the odometry
-//! shows it standing still, and asks for one antenna sweep; the sweep's per-beacon peak RSSI
+//! the base. It sweeps once before driving, from the start pose (the one pose known exactly;
+//! those bearings anchor the map). After `sweep_every_s` of driving it stops the base, waits
+//! until the odometry shows it standing still, and asks for one antenna sweep; the sweep's per-beacon peak RSSI
 //! and bearing update the filter (known association by 64-bit address) and driving resumes.
 //! A beacon not yet mapped gets bearing-only views until the filter's delayed initialisation
 //! triangulates it. Without waypoints the pipeline never moves the base: it sweeps whenever
@@ -139,6 +140,12 @@ impl EkfSlamPipeline {
             )
         });
         let floor = s.bearing_floor_deg.to_radians();
+        // With waypoints, the first sweep is taken before driving, from the start pose.
+        let phase = if controller.is_some() {
+            Phase::Stopping
+        } else {
+            Phase::Driving
+        };
         Ok(Self {
             ekf,
             controller,
@@ -155,7 +162,7 @@ impl EkfSlamPipeline {
             bearing_floor_rad2: floor * floor,
             sweep_every_s: s.sweep_every_s,
             sweep_timeout_s: s.sweep_timeout_s,
-            phase: Phase::Driving,
+            phase,
             last: None,
             driven_since_sweep: 0.0,
             still_since: None,
@@ -537,8 +544,18 @@ mod tests {
     fn drives_stops_sweeps_and_resumes() {
         let mut p = EkfSlamPipeline::new(&settings(vec![[5.0, 0.0]])).unwrap();
         assert!(p.handle(&odo(0.0, 0.0, 0.0, 0.0, 0.0)).is_some());
-        // Driving: a forward command towards the waypoint.
+        // Standing at the start: the first sweep comes before driving, from the start pose
+        // (its bearings anchor the map to the one pose known exactly).
         p.handle(&odo(0.1, 0.0, 0.0, 0.0, 0.0));
+        assert_eq!(
+            p.take_requests().last(),
+            Some(&Request::Sweep { heading_rad: 0.0 })
+        );
+        p.handle(&sweep(0.5, Vec::new()));
+        assert_eq!(p.phase, Phase::Driving);
+        assert_eq!(p.counters().sweeps, 1);
+        // Driving: a forward command towards the waypoint.
+        p.handle(&odo(0.6, 0.0, 0.0, 0.0, 0.0));
         let r = p.take_requests();
         assert!(
             matches!(r.as_slice(), [Request::Velocity { v, .. }] if *v > 0.0),
@@ -546,14 +563,14 @@ mod tests {
         );
         // After sweep_every_s of driving: stop.
         let mut x = 0.0;
-        let mut t = 0.1;
+        let mut t = 0.6;
         while p.phase == Phase::Driving {
             t += 0.1;
             x += 0.03;
             p.handle(&odo(t, x, 0.0, 0.0, 0.3));
         }
         assert_eq!(p.phase, Phase::Stopping);
-        assert!((1.0..1.3).contains(&t), "{t}");
+        assert!((1.5..1.8).contains(&t), "{t}");
         assert_eq!(
             p.take_requests().last(),
             Some(&Request::Velocity { v: 0.0, w: 0.0 })
@@ -572,7 +589,7 @@ mod tests {
         let est = p.handle(&sweep(t + 2.0, Vec::new())).unwrap();
         assert_eq!(est.mode, EstimateMode::Degraded, "no beacon, no fix");
         assert_eq!(p.phase, Phase::Driving);
-        assert_eq!(p.counters().sweeps, 1);
+        assert_eq!(p.counters().sweeps, 2);
     }
 
     #[test]
@@ -683,13 +700,18 @@ mod tests {
         s.sweep_every_s = 100.0;
         let mut p = EkfSlamPipeline::new(&s).unwrap();
         p.handle(&odo(0.0, 0.0, 0.0, 0.0, 0.0));
+        // The start's sweep first.
         p.handle(&odo(0.1, 0.0, 0.0, 0.0, 0.0));
+        assert!(matches!(p.phase, Phase::Sweeping { .. }));
+        p.take_requests();
+        p.handle(&sweep(0.5, Vec::new()));
+        p.handle(&odo(0.6, 0.0, 0.0, 0.0, 0.0));
         assert!(p.is_done(), "inside ρ_min of the only waypoint");
         assert_eq!(
             p.take_requests(),
             vec![Request::Velocity { v: 0.0, w: 0.0 }]
         );
-        p.handle(&odo(0.2, 0.0, 0.0, 0.0, 0.0));
+        p.handle(&odo(0.7, 0.0, 0.0, 0.0, 0.0));
         assert!(p.take_requests().is_empty());
     }
 
