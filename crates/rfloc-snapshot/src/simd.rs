@@ -51,6 +51,12 @@ impl<R, F: FnOnce() -> R> pulp::WithSimd for Run<F> {
 /// Interleaved partial sums of [`lane_sums`].
 const SUM_LANES: usize = 8;
 
+/// The partial sums of one quantity added pairwise, in the one fixed order every variant uses.
+#[inline]
+fn add_partials(p: &[f64; SUM_LANES]) -> f64 {
+    ((p[0] + p[1]) + (p[2] + p[3])) + ((p[4] + p[5]) + (p[6] + p[7]))
+}
+
 /// The `K` sums over the items of `a` and `b` (zipped) of `f(a_i, b_i)`, each kept as 8
 /// interleaved partial sums (item `i` goes to partial `i mod 8`) that are added pairwise at the
 /// end: independent additions that vectorise, instead of one chain of dependent ones whose
@@ -87,11 +93,7 @@ pub(crate) fn lane_sums<A, B, const K: usize>(
             acc
         },
     );
-    let mut out = [0.0; K];
-    for (o, p) in out.iter_mut().zip(&acc) {
-        *o = ((p[0] + p[1]) + (p[2] + p[3])) + ((p[4] + p[5]) + (p[6] + p[7]));
-    }
-    out
+    acc.map(|p| add_partials(&p))
 }
 
 /// [`lane_sums`] over `C` columns of equal length (structure of arrays: the loads are plain
@@ -131,11 +133,7 @@ pub(crate) fn lane_sums_columns<const C: usize, const K: usize>(
             acc
         },
     );
-    let mut out = [0.0; K];
-    for (o, p) in out.iter_mut().zip(&acc) {
-        *o = ((p[0] + p[1]) + (p[2] + p[3])) + ((p[4] + p[5]) + (p[6] + p[7]));
-    }
-    out
+    acc.map(|p| add_partials(&p))
 }
 
 /// The largest `f(x)` over `items` (`f64::max`: NaN values are ignored; −∞ when there are
