@@ -575,7 +575,7 @@ struct FactorWork {
 /// [`JointConfig::misses`].
 fn score(map: &TagMap, obs: &MapObservation, j: &JointConfig, w: &mut FactorWork) {
     if j.misses {
-        map.log_likelihoods(&w.candidates, obs, &mut w.scratch, &mut w.scores);
+        map.log_likelihoods_unpacked(&w.candidates, obs, &mut w.scratch, &mut w.scores);
     } else {
         map.read_log_likelihoods(&w.candidates, obs, &mut w.scratch, &mut w.scores);
     }

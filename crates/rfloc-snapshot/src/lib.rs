@@ -30,6 +30,7 @@ pub mod joint;
 pub mod lattice;
 pub mod navigate;
 mod posegraph;
+mod readpass;
 mod readtable;
 mod simd;
 pub mod state_set;

@@ -6,6 +6,8 @@
 //!   view: behind the antenna or beyond the reach; a tag in view stores at most `−1e−7`, so the
 //!   sign says whether it is in view). The outermost rows and columns are zero: anything
 //!   outside the table reads as "far away".
+//!   For scoring many poses the same table is also kept packed in 32 bits per cell
+//!   ([`Packed`], used by [`crate::readpass`]).
 //! - [`MissField`]: the sum of the miss terms of **every** mapped tag in view, and their number,
 //!   as a function of the antenna pose `(x, y, θ)`, on a 5 cm × 5 cm × 64-heading lattice,
 //!   interpolated trilinearly. It is computed lazily in tiles of 0.8 m × 0.8 m (all headings)
@@ -19,6 +21,7 @@
 use std::f64::consts::TAU;
 use std::sync::OnceLock;
 
+use crate::readpass::{pair_bits, pair_of_bits, zeroed, Packed};
 use crate::tagmap::ReadModel;
 
 /// Grid step of the antenna-frame table, metres.
@@ -26,7 +29,7 @@ const TABLE_STEP: f64 = 0.01;
 /// Cells per side of the table (a power of two: indices need no bounds check). The table
 /// covers `x ∈ [TABLE_X0, TABLE_X0 + 2.55]`, `|y| ≤ 2.55`; beyond, a read tag counts as far
 /// away (mean RSS 0).
-const TABLE_N: usize = 256;
+pub(crate) const TABLE_N: usize = 256;
 const TABLE_X0: f64 = -0.06;
 /// Stored miss term of an in-view tag is at most this (so that it is negative).
 const IN_VIEW_MARK: f64 = -1e-7;
@@ -188,15 +191,6 @@ impl PoseLanes {
     }
 }
 
-/// Scratch of [`ReadTable::add_reads`] for `n` poses (padded).
-#[derive(Debug, Clone, Default)]
-pub(crate) struct ReadScratch {
-    cells: Vec<u32>,
-    gathered: Vec<[f32; 2]>,
-    /// Per pose: read tags the field counted as in view (their miss term was replaced).
-    in_view: Vec<u32>,
-}
-
 /// The reader model tabulated for one floor (see the module documentation).
 #[derive(Clone)]
 pub(crate) struct ReadTable {
@@ -205,8 +199,11 @@ pub(crate) struct ReadTable {
     pub(crate) floor: f64,
     /// Reach of the model (in view: `d ≤ reach` and in front), metres.
     pub(crate) reach: f64,
-    /// Row-major `[iy][ix]`: (mean RSS, miss term). Shared: maps learned in rounds reuse it.
-    cells: std::sync::Arc<[[f32; 2]; TABLE_N * TABLE_N]>,
+    /// Row-major `[iy][ix]`: (mean RSS, miss term) in one word ([`pair_bits`]). Shared: maps
+    /// learned in rounds reuse it.
+    cells: std::sync::Arc<[u64; TABLE_N * TABLE_N]>,
+    /// The same, packed in 32 bits per cell for scoring many poses.
+    packed: Packed,
     /// Miss term by mean RSS, `MISS_STEP` apart, for the field.
     miss: std::sync::Arc<[f64]>,
 }
@@ -226,85 +223,6 @@ pub(crate) fn miss_term(model: &ReadModel, floor: f64, m: f64) -> f64 {
         .max(1e-300)
         .ln()
         .max(-floor)
-}
-
-/// Read tags handled per pass over the poses (their terms are added in the tags' order).
-const TAGS_PER_PASS: usize = 4;
-
-/// What one pass of [`ReadTable::add_reads`] over the poses needs besides the tags.
-struct Pass<'a> {
-    table: &'a ReadTable,
-    /// `−½ / σ²`.
-    scale: f32,
-    floor: f32,
-    reads_only: bool,
-    poses: &'a PoseLanes,
-}
-
-impl Pass<'_> {
-    /// Adds the terms of `K` read tags to every pose: the tags in each antenna's frame as
-    /// table cells (vectorised), the table's entries there (scalar), the terms (vectorised).
-    /// `cells` and `gathered` are scratch of at least `K` times the poses.
-    #[inline(always)]
-    fn run<const K: usize>(
-        &self,
-        tags: &[(f32, f32, f32); K],
-        cells: &mut [u32],
-        gathered: &mut [[f32; 2]],
-        acc: &mut [f32],
-        in_view: &mut [u32],
-    ) {
-        let n = acc.len();
-        let p = self.poses;
-        let (pc, ps, pu, pv) = (&p.c[..n], &p.s[..n], &p.u[..n], &p.v[..n]);
-        for (&(tx, ty, _), out) in tags.iter().zip(cells.chunks_exact_mut(n)) {
-            let out = &mut out[..n];
-            for i in 0..n {
-                let (c, s, u, v) = (pc[i], ps[i], pu[i], pv[i]);
-                out[i] = ReadTable::cell(c * tx + s * ty + u, c * ty - s * tx + v);
-            }
-        }
-        // The index is below the table's size by construction.
-        let table: &[[f32; 2]; TABLE_N * TABLE_N] = &self.table.cells;
-        for (g, &i) in gathered.iter_mut().zip(&cells[..K * n]) {
-            *g = table[i as usize & (TABLE_N * TABLE_N - 1)];
-        }
-        let (scale, floor) = (self.scale, self.floor);
-        let term = |r: f32, g: [f32; 2]| {
-            let d = r - g[0];
-            let t = d * d * scale;
-            if t > -floor {
-                t
-            } else {
-                -floor
-            }
-        };
-        let mut rows = gathered.chunks_exact(n);
-        let g: [&[[f32; 2]]; K] = std::array::from_fn(|_| rows.next().unwrap_or(&[]));
-        let g = g.map(|rows| &rows[..n]);
-        if self.reads_only {
-            for (i, a) in acc.iter_mut().enumerate() {
-                let mut sum = *a;
-                for (&(_, _, r), rows) in tags.iter().zip(&g) {
-                    sum += term(r, rows[i]);
-                }
-                *a = sum;
-            }
-        } else {
-            let in_view = &mut in_view[..n];
-            for (i, a) in acc.iter_mut().enumerate() {
-                let (mut sum, mut seen) = (*a, in_view[i]);
-                for (&(_, _, r), rows) in tags.iter().zip(&g) {
-                    let h = rows[i];
-                    // The read tag's Gaussian term replaces the miss term the field counted.
-                    sum += term(r, h) - h[1];
-                    // The sign bit marks a tag in view.
-                    seen += h[1].to_bits() >> 31;
-                }
-                (*a, in_view[i]) = (sum, seen);
-            }
-        }
-    }
 }
 
 impl ReadTable {
@@ -357,7 +275,14 @@ impl ReadTable {
             model: model.clone(),
             floor,
             reach,
-            cells: cells.into(),
+            packed: Packed::new(&cells[..], floor),
+            cells: {
+                let mut bits = zeroed::<u64>();
+                for (b, &[m, v]) in bits.iter_mut().zip(cells.iter()) {
+                    *b = pair_bits(m, v);
+                }
+                bits.into()
+            },
             miss,
         }
     }
@@ -380,7 +305,7 @@ impl ReadTable {
     /// over many poses vectorise.
     #[inline]
     #[must_use]
-    fn cell(fx: f32, fy: f32) -> u32 {
+    pub(crate) fn cell(fx: f32, fy: f32) -> u32 {
         const TWO_23: f32 = 8_388_608.0;
         #[allow(clippy::cast_precision_loss)]
         let top = (TABLE_N - 1) as f32;
@@ -394,70 +319,14 @@ impl ReadTable {
         (iy << 8) | ix
     }
 
-    /// Adds the read tags' terms to every pose of `poses`: for a tag at `(tx, ty)` (same
-    /// origin as the poses) read with RSS `r`, `acc += max(−½((r − m)/σ)², −floor) − v` (its
-    /// Gaussian term replaces the miss term `v` the field counted) and `terms += 1` unless the
-    /// field counted it already (in view). With `reads_only`, nothing is subtracted and every
-    /// read tag is a term (no field was added). Four tags per pass over the poses.
-    ///
-    /// The loops run in the widest vector instructions the CPU has (chosen at run time); the
-    /// operations and their order are the same in every variant, so are the results.
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) fn add_reads(
-        &self,
-        tags: &[(f32, f32, f32)],
-        inv_sigma: f32,
-        floor: f32,
-        reads_only: bool,
-        poses: &PoseLanes,
-        scratch: &mut ReadScratch,
-        acc: &mut [f32],
-        terms: &mut [f32],
-    ) {
-        crate::simd::widest(
-            #[inline(always)]
-            || {
-                let n = poses.c.len();
-                let ReadScratch {
-                    cells,
-                    gathered,
-                    in_view,
-                } = scratch;
-                cells.clear();
-                cells.resize(TAGS_PER_PASS * n, 0);
-                gathered.clear();
-                gathered.resize(TAGS_PER_PASS * n, [0.0; 2]);
-                in_view.clear();
-                in_view.resize(n, 0);
-                let pass = Pass {
-                    table: self,
-                    // `t = −½ z²` as `d² · k`.
-                    scale: -0.5 * inv_sigma * inv_sigma,
-                    floor,
-                    reads_only,
-                    poses,
-                };
-                for chunk in tags.chunks(TAGS_PER_PASS) {
-                    let (cells, gathered) = (&mut cells[..], &mut gathered[..]);
-                    let (acc, in_view) = (&mut acc[..n], &mut in_view[..]);
-                    match *chunk {
-                        [a, b, c, d] => pass.run(&[a, b, c, d], cells, gathered, acc, in_view),
-                        [a, b, c] => pass.run(&[a, b, c], cells, gathered, acc, in_view),
-                        [a, b] => pass.run(&[a, b], cells, gathered, acc, in_view),
-                        [a] => pass.run(&[a], cells, gathered, acc, in_view),
-                        _ => {}
-                    }
-                }
-                #[allow(clippy::cast_precision_loss)]
-                let read = tags.len() as f32;
-                for (k, &seen) in terms.iter_mut().zip(in_view.iter()) {
-                    #[allow(clippy::cast_precision_loss)]
-                    {
-                        *k += read - seen as f32;
-                    }
-                }
-            },
-        );
+    /// The cells as (mean RSS, miss term) words ([`pair_bits`]).
+    pub(crate) fn pairs(&self) -> &[u64; TABLE_N * TABLE_N] {
+        &self.cells
+    }
+
+    /// The cells packed in 32 bits.
+    pub(crate) fn packed(&self) -> &Packed {
+        &self.packed
     }
 
     /// (mean RSS, miss term) at antenna-frame `(x, y)`.
@@ -466,7 +335,7 @@ impl ReadTable {
     pub(crate) fn at(&self, x: f64, y: f64) -> (f64, f64) {
         #[allow(clippy::cast_possible_truncation)]
         let i = Self::index(x as f32, y as f32) as usize;
-        let [m, v] = self.cells.get(i).copied().unwrap_or([0.0, 0.0]);
+        let [m, v] = pair_of_bits(self.cells.get(i).copied().unwrap_or(0));
         (f64::from(m), f64::from(v))
     }
 
@@ -1117,72 +986,6 @@ mod tests {
         }
         let scored = sums.iter().filter(|s| **s < 0.0).count();
         assert!(scored > n / 10, "{scored} poses see tags");
-    }
-
-    /// `add_reads` (in whatever instructions this CPU has, four tags per pass) against a plain
-    /// loop over poses and tags in the baseline instructions: the same bits, for every number
-    /// of tags modulo the pass, with and without the field, poses on and off the table.
-    #[test]
-    fn add_reads_equals_a_plain_loop_bit_for_bit() {
-        use rand::{Rng, SeedableRng};
-        let model = ReadModel::seed000(1000.0, 2);
-        let table = ReadTable::new(&model, 6.0);
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
-        let (inv_sigma, floor) = (1.0 / 45.0_f32, 6.0_f32);
-        let scale = -0.5 * inv_sigma * inv_sigma;
-        let mut scratch = ReadScratch::default();
-        for (count, reads_only) in (0..11).flat_map(|c| [(c, false), (c, true)]) {
-            let mut poses = PoseLanes::default();
-            let n = 37;
-            poses.reset(n);
-            for i in 0..n {
-                let (s, c) = sincos_f32(rng.random_range(-4.0..4.0));
-                let (x, y) = (rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0));
-                [poses.c[i], poses.s[i], poses.u[i], poses.v[i]] = PoseLanes::lane(x, y, c, s);
-            }
-            let tags: Vec<(f32, f32, f32)> = (0..count)
-                .map(|_| {
-                    (
-                        rng.random_range(-2.0..2.0),
-                        rng.random_range(-2.0..2.0),
-                        rng.random_range(500.0..2500.0),
-                    )
-                })
-                .collect();
-            let padded = poses.c.len();
-            let acc0: Vec<f32> = (0..padded).map(|_| rng.random_range(-30.0..0.0)).collect();
-            let terms0: Vec<f32> = (0..padded).map(|_| rng.random_range(0.0..20.0)).collect();
-            let (mut acc, mut terms) = (acc0.clone(), terms0.clone());
-            table.add_reads(
-                &tags,
-                inv_sigma,
-                floor,
-                reads_only,
-                &poses,
-                &mut scratch,
-                &mut acc,
-                &mut terms,
-            );
-            for i in 0..padded {
-                let (mut a, mut seen) = (acc0[i], 0_u32);
-                for &(tx, ty, r) in &tags {
-                    let (c, s, u, v) = (poses.c[i], poses.s[i], poses.u[i], poses.v[i]);
-                    let cell = ReadTable::cell(c * tx + s * ty + u, c * ty - s * tx + v) & 0xFFFF;
-                    let g = table.cells[cell as usize];
-                    let d = r - g[0];
-                    let t = (d * d * scale).max(-floor);
-                    if reads_only {
-                        a += t;
-                    } else {
-                        a += t - g[1];
-                        seen += u32::from(g[1] < 0.0);
-                    }
-                }
-                let k = terms0[i] + (count as f32 - seen as f32);
-                assert_eq!(acc[i].to_bits(), a.to_bits(), "{count} tags, pose {i}");
-                assert_eq!(terms[i].to_bits(), k.to_bits(), "{count} tags, pose {i}");
-            }
-        }
     }
 
     #[test]

@@ -21,6 +21,26 @@ pub(crate) fn widest<R>(f: impl FnOnce() -> R) -> R {
     pulp::Arch::new().dispatch(Run(f))
 }
 
+/// True when [`widest`] runs in AVX-512, for which the compiler turns table look-ups at
+/// computed indices inside a vectorised loop into vector gathers. With AVX2 it does not (it
+/// would run such a loop one element at a time), so loops with look-ups keep them in a scalar
+/// pass of their own there.
+#[inline]
+pub(crate) fn gathers_vectorise() -> bool {
+    #[cfg(test)]
+    if BASELINE.with(std::cell::Cell::get) {
+        return false;
+    }
+    #[cfg(target_arch = "x86_64")]
+    {
+        matches!(pulp::Arch::new(), pulp::Arch::V4(_))
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
 #[cfg(test)]
 thread_local! {
     /// Set by [`on_baseline`]: `widest` runs its loops as compiled for the baseline.

@@ -27,9 +27,8 @@ use std::sync::Arc;
 use rfloc_pose::{normal_cdf, Pose2};
 use serde::{Deserialize, Serialize};
 
-use crate::readtable::{
-    sincos_f32, AntennaLanes, FieldScratch, MissField, PoseLanes, ReadScratch, ReadTable,
-};
+use crate::readpass::{add_reads, ReadMode, ReadScratch, Reads};
+use crate::readtable::{sincos_f32, AntennaLanes, FieldScratch, MissField, PoseLanes, ReadTable};
 use crate::snapshot::Snapshot;
 use crate::tag::TagId;
 
@@ -436,6 +435,11 @@ impl TagMap {
     /// miss field: per pose, one field look-up plus one table look-up per read tag. Falls back
     /// to [`TagMap::log_likelihood_exact`] when the tables are missing or were built for
     /// another model or floor (call [`TagMap::rebuild_index`] after changing them).
+    ///
+    /// The read tags' means and miss terms come from the table packed in 32 bits per cell:
+    /// one look-up per pair of pose and read tag (16 at a time with AVX-512). Packing rounds a
+    /// mean by at most 1/131070 of the table's range of means and a miss term by at most
+    /// `floor / 65534`; [`TagMap::log_likelihoods_unpacked`] takes them as tabulated.
     pub fn log_likelihoods(
         &self,
         poses: &[Pose2],
@@ -443,7 +447,20 @@ impl TagMap {
         scratch: &mut LikelihoodScratch,
         out: &mut Vec<(f64, f64)>,
     ) {
-        self.score(poses, obs, scratch, out, false);
+        self.score(poses, obs, scratch, out, ReadMode::Packed);
+    }
+
+    /// As [`TagMap::log_likelihoods`] with the table's means and miss terms as tabulated (not
+    /// packed): what the joint learning of map and trajectory scores by, whose factors come
+    /// from the likelihood's shape over small steps.
+    pub fn log_likelihoods_unpacked(
+        &self,
+        poses: &[Pose2],
+        obs: &MapObservation,
+        scratch: &mut LikelihoodScratch,
+        out: &mut Vec<(f64, f64)>,
+    ) {
+        self.score(poses, obs, scratch, out, ReadMode::Full);
     }
 
     /// As [`TagMap::log_likelihoods`] with the read tags' terms only (no miss terms): what the
@@ -456,7 +473,7 @@ impl TagMap {
         scratch: &mut LikelihoodScratch,
         out: &mut Vec<(f64, f64)>,
     ) {
-        self.score(poses, obs, scratch, out, true);
+        self.score(poses, obs, scratch, out, ReadMode::ReadsOnly);
     }
 
     fn score(
@@ -465,8 +482,9 @@ impl TagMap {
         obs: &MapObservation,
         scratch: &mut LikelihoodScratch,
         out: &mut Vec<(f64, f64)>,
-        reads_only: bool,
+        mode: ReadMode,
     ) {
+        let reads_only = mode == ReadMode::ReadsOnly;
         out.clear();
         let Some(field) = self
             .field
@@ -550,9 +568,13 @@ impl TagMap {
             if !reads_only {
                 field.sample_many(antenna, field_scratch, &mut acc[..m], &mut terms[..m]);
             }
-            table.add_reads(
-                &tags, inv_sigma, floor, reads_only, lanes, reads, acc, terms,
-            );
+            let read_tags = Reads {
+                tags: &tags,
+                inv_sigma,
+                floor,
+                mode,
+            };
+            add_reads(table, &read_tags, lanes, reads, acc, terms);
             out.extend(
                 acc.iter()
                     .zip(terms.iter())

@@ -1,0 +1,634 @@
+//! The read tags' terms of a snapshot for many poses at once, looked up in a [`ReadTable`]:
+//! per pair of pose and read tag, the tag's cell in the antenna's frame, the table's entry
+//! there, the floored Gaussian term of its RSS against the entry's mean, less the miss term the
+//! field counted for it.
+//!
+//! Three ways to score ([`ReadMode`]):
+//! - [`ReadMode::Packed`], what the particle filter uses: the table packed in 32 bits per cell
+//!   ([`Packed`]), so that one look-up serves a pair, and where the CPU has vector gathers the
+//!   compiler uses (AVX-512), one fused loop whose look-ups are 16-lane gathers.
+//! - [`ReadMode::Full`]: the table's single floats as they are (the joint learning of map and
+//!   trajectory, whose runs are compared with earlier runs bit for bit).
+//! - [`ReadMode::ReadsOnly`]: the Gaussian terms alone, no miss terms (no field).
+//!
+//! Per pose the terms are added in the tags' order in every variant; the loops run in the widest
+//! vector instructions the CPU has (`simd::widest`), plain floating-point code without fused
+//! multiply-adds, so every instruction set gives the same bits.
+
+use crate::readtable::{PoseLanes, ReadTable, TABLE_N};
+
+/// Cells of the table (a power of two: an index masked to it needs no bounds check).
+const CELLS: usize = TABLE_N * TABLE_N;
+
+/// Read tags handled per pass over the poses (their terms are added in the tags' order).
+const TAGS_PER_PASS: usize = 4;
+
+/// How the read tags are scored (see the module documentation).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum ReadMode {
+    Packed,
+    Full,
+    ReadsOnly,
+}
+
+/// The read tags of a snapshot and how to score them.
+pub(crate) struct Reads<'a> {
+    /// `(x, y, RSS)` per read tag, `(x, y)` relative to the poses' origin.
+    pub(crate) tags: &'a [(f32, f32, f32)],
+    /// `1/σ` of the RSS.
+    pub(crate) inv_sigma: f32,
+    /// Terms are floored at `−floor`.
+    pub(crate) floor: f32,
+    pub(crate) mode: ReadMode,
+}
+
+/// Scratch of [`add_reads`] for `n` poses (padded).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct ReadScratch {
+    cells: Vec<u32>,
+    packed: Vec<u32>,
+    pairs: Vec<u64>,
+    /// Per pose: read tags the field counted as in view (their miss term was replaced).
+    in_view: Vec<u32>,
+    /// Per pose: the sum of the read tags' packed high halves (miss terms and in-view marks).
+    high: Vec<u32>,
+    /// The tags with their RSS in the units of the mode.
+    tags: Vec<(f32, f32, f32)>,
+}
+
+/// The read table packed in 32 bits per cell: bits 0–15 the mean RSS as `lo + q·mean_step`
+/// (`q` rounded, 0–65535, over the table's range of means), bits 16–30 the miss term as
+/// `−q·miss_step` (0–32767 over `[−floor, 0]`), bit 31 set when the tag is in view. The
+/// rounding moves a mean by at most half a step (1/131070 of the range of means) and a miss
+/// term by at most `floor / 65534`.
+#[derive(Clone)]
+pub(crate) struct Packed {
+    cells: std::sync::Arc<[u32; CELLS]>,
+    /// Mean RSS of `q = 0` and per unit of `q`.
+    mean_lo: f32,
+    mean_step: f32,
+    /// Miss term per unit of its `q` (negated).
+    miss_step: f32,
+}
+
+impl Packed {
+    /// Packs the (mean RSS, miss term) cells of a table floored at `−floor`.
+    pub(crate) fn new(pairs: &[[f32; 2]], floor: f64) -> Self {
+        let (lo, hi) = pairs
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| {
+                (lo.min(p[0]), hi.max(p[0]))
+            });
+        let (lo, hi) = if lo <= hi { (lo, hi) } else { (0.0, 0.0) };
+        let mean_step = if hi > lo { (hi - lo) / 65_535.0 } else { 1.0 };
+        #[allow(clippy::cast_possible_truncation)]
+        let miss_step = ((floor / 32_767.0) as f32).max(f32::MIN_POSITIVE);
+        let mut cells = zeroed::<u32>();
+        for (out, &[m, v]) in cells.iter_mut().zip(pairs) {
+            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+            let q_mean = ((m - lo) / mean_step).round().clamp(0.0, 65_535.0) as u32;
+            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+            let q_miss = (-v / miss_step).round().clamp(0.0, 32_767.0) as u32;
+            *out = q_mean | (q_miss << 16) | (u32::from(v < 0.0) << 31);
+        }
+        Self {
+            cells: cells.into(),
+            mean_lo: lo,
+            mean_step,
+            miss_step,
+        }
+    }
+
+    /// The `q` of the mean of a packed cell as a float (exact: `q < 2²³`), without an
+    /// integer-to-float conversion (2²³ + q has `q` in its low mantissa bits).
+    #[inline(always)]
+    fn mean_q(g: u32) -> f32 {
+        const TWO_23: f32 = 8_388_608.0;
+        f32::from_bits((g & 0xFFFF) | 0x4B00_0000) - TWO_23
+    }
+
+    /// (mean RSS, miss term, in view) of a packed cell.
+    #[cfg(test)]
+    fn unpack(&self, g: u32) -> (f32, f32, bool) {
+        #[allow(clippy::cast_precision_loss)]
+        let miss = -(((g >> 16) & 0x7FFF) as f32) * self.miss_step;
+        (
+            self.mean_lo + Self::mean_q(g) * self.mean_step,
+            miss,
+            g >> 31 == 1,
+        )
+    }
+}
+
+/// A table of `CELLS` zeros on the heap (built there: up to 512 KiB).
+pub(crate) fn zeroed<T: Copy + Default>() -> Box<[T; CELLS]> {
+    vec![T::default(); CELLS]
+        .into_boxed_slice()
+        .try_into()
+        .unwrap_or_else(|_| Box::new([T::default(); CELLS]))
+}
+
+/// A table's (mean RSS, miss term) in one word: the mean's bits low, the miss term's high.
+#[inline]
+pub(crate) fn pair_bits(m: f32, v: f32) -> u64 {
+    u64::from(m.to_bits()) | (u64::from(v.to_bits()) << 32)
+}
+
+/// The (mean RSS, miss term) of [`pair_bits`].
+#[inline(always)]
+pub(crate) fn pair_of_bits(g: u64) -> [f32; 2] {
+    #[allow(clippy::cast_possible_truncation)]
+    [f32::from_bits(g as u32), f32::from_bits((g >> 32) as u32)]
+}
+
+/// One way to score a read tag against a table cell.
+trait Scoring: Copy {
+    type Cell: Copy + Default;
+    /// Adds the term of a tag read with RSS `r` whose cell holds `g`: to the pose's sum, its
+    /// in-view count and (packed cells) its sum of high halves.
+    fn add(self, r: f32, g: Self::Cell, sum: &mut f32, seen: &mut u32, high: &mut u32);
+}
+
+/// The floored Gaussian term `max(d² · scale, −floor)` (`scale = −½/σ²` in the units of `d`).
+#[derive(Clone, Copy)]
+struct Gauss {
+    scale: f32,
+    floor: f32,
+}
+
+impl Gauss {
+    #[inline(always)]
+    fn term(self, d: f32) -> f32 {
+        let t = d * d * self.scale;
+        if t > -self.floor {
+            t
+        } else {
+            -self.floor
+        }
+    }
+}
+
+/// [`ReadMode::Packed`]: `r` in the packed mean's units; the miss terms are summed as integers
+/// in the high halves and subtracted once per pose.
+#[derive(Clone, Copy)]
+struct PackedTerms(Gauss);
+
+impl Scoring for PackedTerms {
+    type Cell = u32;
+    #[inline(always)]
+    fn add(self, r: f32, g: u32, sum: &mut f32, seen: &mut u32, high: &mut u32) {
+        *sum += self.0.term(r - Packed::mean_q(g));
+        *seen += g >> 31;
+        *high += g >> 16;
+    }
+}
+
+/// [`ReadMode::Full`]: the cell's single floats; the miss term is subtracted per tag.
+#[derive(Clone, Copy)]
+struct FullTerms(Gauss);
+
+impl Scoring for FullTerms {
+    type Cell = u64;
+    #[inline(always)]
+    fn add(self, r: f32, g: u64, sum: &mut f32, seen: &mut u32, _: &mut u32) {
+        let [m, v] = pair_of_bits(g);
+        *sum += self.0.term(r - m) - v;
+        // The sign bit marks a tag in view.
+        *seen += v.to_bits() >> 31;
+    }
+}
+
+/// [`ReadMode::ReadsOnly`]: the Gaussian term against the cell's mean, nothing else.
+#[derive(Clone, Copy)]
+struct ReadTerms(Gauss);
+
+impl Scoring for ReadTerms {
+    type Cell = u64;
+    #[inline(always)]
+    fn add(self, r: f32, g: u64, sum: &mut f32, _: &mut u32, _: &mut u32) {
+        *sum += self.0.term(r - pair_of_bits(g)[0]);
+    }
+}
+
+/// The cell of a tag at `(tx, ty)` seen from pose lane `(c, s, u, v)`.
+#[inline(always)]
+fn cell_of(c: f32, s: f32, u: f32, v: f32, tx: f32, ty: f32) -> usize {
+    ReadTable::cell(c * tx + s * ty + u, c * ty - s * tx + v) as usize & (CELLS - 1)
+}
+
+/// Per pose, what the passes add to.
+struct Sums<'a> {
+    acc: &'a mut [f32],
+    in_view: &'a mut [u32],
+    high: &'a mut [u32],
+}
+
+/// Adds the terms of `K` read tags to every pose in three passes: the tags in each antenna's
+/// frame as table cells (vectorised), the table's entries there (scalar), the terms
+/// (vectorised). For instruction sets without vector gathers the compiler uses. `cells` and
+/// `gathered` are scratch of at least `K` times the poses. (Slices as arguments, not in a
+/// struct: the compiler then knows they do not overlap.)
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn run_in_passes<S: Scoring, const K: usize>(
+    scoring: S,
+    table: &[S::Cell; CELLS],
+    poses: &PoseLanes,
+    tags: &[(f32, f32, f32); K],
+    cells: &mut [u32],
+    gathered: &mut [S::Cell],
+    acc: &mut [f32],
+    in_view: &mut [u32],
+    high: &mut [u32],
+) {
+    let n = acc.len();
+    let (pc, ps, pu, pv) = (&poses.c[..n], &poses.s[..n], &poses.u[..n], &poses.v[..n]);
+    let (in_view, high) = (&mut in_view[..n], &mut high[..n]);
+    for (&(tx, ty, _), out) in tags.iter().zip(cells.chunks_exact_mut(n)) {
+        let out = &mut out[..n];
+        for i in 0..n {
+            #[allow(clippy::cast_possible_truncation)]
+            {
+                out[i] = cell_of(pc[i], ps[i], pu[i], pv[i], tx, ty) as u32;
+            }
+        }
+    }
+    for (g, &i) in gathered.iter_mut().zip(&cells[..K * n]) {
+        *g = table[i as usize & (CELLS - 1)];
+    }
+    let mut rows = gathered.chunks_exact(n);
+    let g: [&[S::Cell]; K] = std::array::from_fn(|_| rows.next().unwrap_or(&[]));
+    let g = g.map(|rows| &rows[..n]);
+    for i in 0..n {
+        let (mut sum, mut seen, mut hi) = (acc[i], in_view[i], high[i]);
+        for (&(_, _, r), rows) in tags.iter().zip(&g) {
+            scoring.add(r, rows[i], &mut sum, &mut seen, &mut hi);
+        }
+        (acc[i], in_view[i], high[i]) = (sum, seen, hi);
+    }
+}
+
+/// [`run_in_passes`] as one loop over the poses with the look-ups inside, for instruction
+/// sets whose vector gathers the compiler uses (one 16-lane gather per 16 pairs of pose and
+/// tag with packed cells). The operations and their order per pose are the same, so are the
+/// results.
+#[inline(always)]
+fn run_fused<S: Scoring, const K: usize>(
+    scoring: S,
+    table: &[S::Cell; CELLS],
+    poses: &PoseLanes,
+    tags: &[(f32, f32, f32); K],
+    acc: &mut [f32],
+    in_view: &mut [u32],
+    high: &mut [u32],
+) {
+    let n = acc.len();
+    let (pc, ps, pu, pv) = (&poses.c[..n], &poses.s[..n], &poses.u[..n], &poses.v[..n]);
+    let (in_view, high) = (&mut in_view[..n], &mut high[..n]);
+    for i in 0..n {
+        let (c, s, u, v) = (pc[i], ps[i], pu[i], pv[i]);
+        let (mut sum, mut seen, mut hi) = (acc[i], in_view[i], high[i]);
+        for &(tx, ty, r) in tags {
+            let g = table[cell_of(c, s, u, v, tx, ty)];
+            scoring.add(r, g, &mut sum, &mut seen, &mut hi);
+        }
+        (acc[i], in_view[i], high[i]) = (sum, seen, hi);
+    }
+}
+
+/// Every read tag over every pose, four tags per pass, fused or in passes.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn run_all<S: Scoring>(
+    scoring: S,
+    table: &[S::Cell; CELLS],
+    poses: &PoseLanes,
+    tags: &[(f32, f32, f32)],
+    fused: bool,
+    cells: &mut Vec<u32>,
+    gathered: &mut Vec<S::Cell>,
+    sums: Sums<'_>,
+) {
+    let n = sums.acc.len();
+    let scratch = if fused { 0 } else { TAGS_PER_PASS * n };
+    cells.clear();
+    cells.resize(scratch, 0);
+    gathered.clear();
+    gathered.resize(scratch, S::Cell::default());
+    let Sums { acc, in_view, high } = sums;
+    for chunk in tags.chunks(TAGS_PER_PASS) {
+        let (cells, gathered) = (&mut cells[..], &mut gathered[..]);
+        let (acc, in_view, high) = (&mut acc[..], &mut in_view[..], &mut high[..]);
+        match (chunk, fused) {
+            (&[a, b, c, d], true) => {
+                run_fused(scoring, table, poses, &[a, b, c, d], acc, in_view, high);
+            }
+            (&[a, b, c, d], false) => run_in_passes(
+                scoring,
+                table,
+                poses,
+                &[a, b, c, d],
+                cells,
+                gathered,
+                acc,
+                in_view,
+                high,
+            ),
+            (_, true) => {
+                for &a in chunk {
+                    run_fused(scoring, table, poses, &[a], acc, in_view, high);
+                }
+            }
+            (_, false) => {
+                for &a in chunk {
+                    run_in_passes(
+                        scoring,
+                        table,
+                        poses,
+                        &[a],
+                        cells,
+                        gathered,
+                        acc,
+                        in_view,
+                        high,
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// Adds the read tags' terms to every pose of `poses` (`acc`, `terms` padded like them): for a
+/// tag read with RSS `r` whose cell holds mean `m` and miss term `v`,
+/// `acc += max(−½((r − m)/σ)², −floor) − v` (its Gaussian term replaces the miss term the field
+/// counted) and `terms += 1` unless the field counted it already (in view). With
+/// [`ReadMode::ReadsOnly`] nothing is subtracted and every read tag is a term (no field was
+/// added). Packed cells: per pose the Gaussian terms in the tags' order, then the miss terms'
+/// sum.
+pub(crate) fn add_reads(
+    table: &ReadTable,
+    reads: &Reads<'_>,
+    poses: &PoseLanes,
+    scratch: &mut ReadScratch,
+    acc: &mut [f32],
+    terms: &mut [f32],
+) {
+    let fused = reads.mode == ReadMode::Packed && crate::simd::gathers_vectorise();
+    add_reads_in(table, reads, poses, scratch, acc, terms, fused);
+}
+
+/// [`add_reads`] fused or in passes (the same bits).
+fn add_reads_in(
+    table: &ReadTable,
+    reads: &Reads<'_>,
+    poses: &PoseLanes,
+    scratch: &mut ReadScratch,
+    acc: &mut [f32],
+    terms: &mut [f32],
+    fused: bool,
+) {
+    let packed = table.packed();
+    let ReadScratch {
+        cells,
+        packed: packed_rows,
+        pairs: pair_rows,
+        in_view,
+        high,
+        tags,
+    } = scratch;
+    // Packed: the RSS in the packed mean's units, `(r − lo) / step`, and σ with it.
+    tags.clear();
+    let step = if reads.mode == ReadMode::Packed {
+        tags.extend(
+            reads
+                .tags
+                .iter()
+                .map(|&(x, y, r)| (x, y, (r - packed.mean_lo) / packed.mean_step)),
+        );
+        packed.mean_step * reads.inv_sigma
+    } else {
+        tags.extend_from_slice(reads.tags);
+        reads.inv_sigma
+    };
+    let gauss = Gauss {
+        // `t = −½ z²` as `d² · k`.
+        scale: -0.5 * step * step,
+        floor: reads.floor,
+    };
+    let tags = &tags[..];
+    crate::simd::widest(
+        #[inline(always)]
+        || {
+            let n = poses.c.len();
+            for v in [&mut *in_view, &mut *high] {
+                v.clear();
+                v.resize(n, 0);
+            }
+            let acc = &mut acc[..n];
+            let sums = Sums {
+                acc: &mut acc[..],
+                in_view: &mut in_view[..],
+                high: &mut high[..],
+            };
+            match reads.mode {
+                ReadMode::Packed => run_all(
+                    PackedTerms(gauss),
+                    &packed.cells,
+                    poses,
+                    tags,
+                    fused,
+                    cells,
+                    packed_rows,
+                    sums,
+                ),
+                ReadMode::Full => run_all(
+                    FullTerms(gauss),
+                    table.pairs(),
+                    poses,
+                    tags,
+                    fused,
+                    cells,
+                    pair_rows,
+                    sums,
+                ),
+                ReadMode::ReadsOnly => run_all(
+                    ReadTerms(gauss),
+                    table.pairs(),
+                    poses,
+                    tags,
+                    fused,
+                    cells,
+                    pair_rows,
+                    sums,
+                ),
+            }
+            #[allow(clippy::cast_precision_loss)]
+            let read = tags.len() as f32;
+            let m = n.min(terms.len());
+            let terms = &mut terms[..m];
+            match reads.mode {
+                ReadMode::ReadsOnly => {
+                    for k in terms.iter_mut() {
+                        *k += read;
+                    }
+                }
+                ReadMode::Full => {
+                    for (k, &seen) in terms.iter_mut().zip(in_view.iter()) {
+                        #[allow(clippy::cast_precision_loss)]
+                        {
+                            *k += read - seen as f32;
+                        }
+                    }
+                }
+                ReadMode::Packed => {
+                    let miss_step = packed.miss_step;
+                    for (i, k) in terms.iter_mut().enumerate() {
+                        let (seen, hi) = (in_view[i], high[i]);
+                        // The high halves' sum less the in-view marks: the miss terms' `q`s.
+                        #[allow(clippy::cast_precision_loss)]
+                        {
+                            acc[i] += (hi - (seen << 15)) as f32 * miss_step;
+                            *k += read - seen as f32;
+                        }
+                    }
+                }
+            }
+        },
+    );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::readtable::sincos_f32;
+    use crate::tagmap::ReadModel;
+
+    /// `add_reads` in every mode and both loop shapes (fused and in passes), each in the
+    /// widest instructions this CPU has and in the baseline ones, against a plain loop over
+    /// poses and tags: the same bits, for every number of tags modulo the pass, poses on and
+    /// off the table.
+    #[test]
+    fn add_reads_equals_a_plain_loop_bit_for_bit() {
+        use rand::{Rng, SeedableRng};
+        let model = ReadModel::seed000(1000.0, 2);
+        let table = ReadTable::new(&model, 6.0);
+        let packed = table.packed();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let (inv_sigma, floor) = (1.0 / 45.0_f32, 6.0_f32);
+        let mut scratch = ReadScratch::default();
+        let modes = [ReadMode::Packed, ReadMode::Full, ReadMode::ReadsOnly];
+        for (count, mode) in (0..11).flat_map(|c| modes.map(|m| (c, m))) {
+            let mut poses = PoseLanes::default();
+            let n = 37;
+            poses.reset(n);
+            for i in 0..n {
+                let (s, c) = sincos_f32(rng.random_range(-4.0..4.0));
+                let (x, y) = (rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0));
+                [poses.c[i], poses.s[i], poses.u[i], poses.v[i]] = PoseLanes::lane(x, y, c, s);
+            }
+            let tags: Vec<(f32, f32, f32)> = (0..count)
+                .map(|_| {
+                    (
+                        rng.random_range(-2.0..2.0),
+                        rng.random_range(-2.0..2.0),
+                        rng.random_range(500.0..2500.0),
+                    )
+                })
+                .collect();
+            let padded = poses.c.len();
+            let acc0: Vec<f32> = (0..padded).map(|_| rng.random_range(-30.0..0.0)).collect();
+            let terms0: Vec<f32> = (0..padded).map(|_| rng.random_range(0.0..20.0)).collect();
+            let reads = Reads {
+                tags: &tags,
+                inv_sigma,
+                floor,
+                mode,
+            };
+            let mut runs = Vec::new();
+            for (fused, baseline) in [(true, false), (false, false), (true, true), (false, true)] {
+                let (mut acc, mut terms) = (acc0.clone(), terms0.clone());
+                let mut run = || {
+                    add_reads_in(
+                        &table,
+                        &reads,
+                        &poses,
+                        &mut scratch,
+                        &mut acc,
+                        &mut terms,
+                        fused,
+                    );
+                };
+                if baseline {
+                    crate::simd::on_baseline(run);
+                } else {
+                    run();
+                }
+                runs.push((format!("fused {fused}, baseline {baseline}"), acc, terms));
+            }
+            let term = |d: f32, scale: f32| (d * d * scale).max(-floor);
+            for i in 0..padded {
+                let (mut a, mut seen, mut high) = (acc0[i], 0_u32, 0_u32);
+                for &(tx, ty, r) in &tags {
+                    let (c, s, u, v) = (poses.c[i], poses.s[i], poses.u[i], poses.v[i]);
+                    let cell = ReadTable::cell(c * tx + s * ty + u, c * ty - s * tx + v) & 0xFFFF;
+                    let [m, miss] = pair_of_bits(table.pairs()[cell as usize]);
+                    let exact = -0.5 * inv_sigma * inv_sigma;
+                    match mode {
+                        ReadMode::ReadsOnly => a += term(r - m, exact),
+                        ReadMode::Full => {
+                            a += term(r - m, exact) - miss;
+                            seen += u32::from(miss < 0.0);
+                        }
+                        ReadMode::Packed => {
+                            let g = packed.cells[cell as usize];
+                            let step = packed.mean_step * inv_sigma;
+                            let d = (r - packed.mean_lo) / packed.mean_step - Packed::mean_q(g);
+                            a += term(d, -0.5 * step * step);
+                            seen += g >> 31;
+                            high += g >> 16;
+                        }
+                    }
+                }
+                if mode == ReadMode::Packed {
+                    a += (high - (seen << 15)) as f32 * packed.miss_step;
+                }
+                let k = terms0[i] + (count as f32 - seen as f32);
+                for (name, acc, terms) in &runs {
+                    let what = format!("{mode:?}, {name}: {count} tags, pose {i}");
+                    assert_eq!(acc[i].to_bits(), a.to_bits(), "{what}");
+                    assert_eq!(terms[i].to_bits(), k.to_bits(), "{what}");
+                }
+            }
+        }
+    }
+
+    /// The packed table against the cells it packs: every mean within half a step, every miss
+    /// term within half its step, the in-view mark where the miss term is negative.
+    #[test]
+    fn packed_cells_hold_the_pairs_within_half_a_step() {
+        for floor in [6.0, 0.5] {
+            let table = ReadTable::new(&ReadModel::seed000(1000.0, 2), floor);
+            let p = table.packed();
+            assert!(p.mean_step > 0.0 && p.miss_step > 0.0);
+            let mut in_view = 0;
+            for (&g, &pair) in p.cells.iter().zip(table.pairs().iter()) {
+                let [m, v] = pair_of_bits(pair);
+                let (pm, pv, seen) = p.unpack(g);
+                assert!(
+                    (pm - m).abs() <= 0.5 * p.mean_step + m.abs() * 1e-6,
+                    "{pm} {m}"
+                );
+                #[allow(clippy::cast_possible_truncation)]
+                let floor32 = floor as f32;
+                assert!(
+                    (pv - v).abs() <= 0.5 * p.miss_step + floor32 * 1e-6,
+                    "{pv} {v}"
+                );
+                assert_eq!(seen, v < 0.0);
+                in_view += usize::from(seen);
+            }
+            // The view covers a good part of the table.
+            assert!(in_view > CELLS / 20, "{in_view}");
+        }
+    }
+}
