@@ -20,6 +20,10 @@ use crate::readtable::{PoseLanes, ReadTable, TABLE_N};
 /// Cells of the table (a power of two: an index masked to it needs no bounds check).
 const CELLS: usize = TABLE_N * TABLE_N;
 
+/// 2²³: added to a float in `[0, 2²³)` it rounds it to a whole number held in the low mantissa
+/// bits.
+const TWO_23: f32 = 8_388_608.0;
+
 /// Read tags handled per pass over the poses (their terms are added in the tags' order).
 const TAGS_PER_PASS: usize = 4;
 
@@ -99,12 +103,18 @@ impl Packed {
         }
     }
 
-    /// The `q` of the mean of a packed cell as a float (exact: `q < 2²³`), without an
-    /// integer-to-float conversion (2²³ + q has `q` in its low mantissa bits).
+    /// `2²³ + q` for the `q` of the mean of a packed cell, as a float (exact), without an
+    /// integer-to-float conversion: the float with `q` in its low mantissa bits.
     #[inline(always)]
-    fn mean_q(g: u32) -> f32 {
-        const TWO_23: f32 = 8_388_608.0;
-        f32::from_bits((g & 0xFFFF) | 0x4B00_0000) - TWO_23
+    fn biased_mean_q(g: u32) -> f32 {
+        f32::from_bits((g & 0xFFFF) | 0x4B00_0000)
+    }
+
+    /// An RSS in the units of the packed means, biased like [`Packed::biased_mean_q`]:
+    /// `2²³ + (r − lo) / step`, which rounds it to a whole step (by at most half a step).
+    #[inline]
+    fn biased_rss(&self, r: f32) -> f32 {
+        (r - self.mean_lo) / self.mean_step + TWO_23
     }
 
     /// (mean RSS, miss term, in view) of a packed cell.
@@ -113,7 +123,7 @@ impl Packed {
         #[allow(clippy::cast_precision_loss)]
         let miss = -(((g >> 16) & 0x7FFF) as f32) * self.miss_step;
         (
-            self.mean_lo + Self::mean_q(g) * self.mean_step,
+            self.mean_lo + (Self::biased_mean_q(g) - TWO_23) * self.mean_step,
             miss,
             g >> 31 == 1,
         )
@@ -168,7 +178,7 @@ impl Gauss {
     }
 }
 
-/// [`ReadMode::Packed`]: `r` in the packed mean's units; the miss terms are summed as integers
+/// [`ReadMode::Packed`]: `r` as [`Packed::biased_rss`]; the miss terms are summed as integers
 /// in the high halves and subtracted once per pose.
 #[derive(Clone, Copy)]
 struct PackedTerms(Gauss);
@@ -177,7 +187,8 @@ impl Scoring for PackedTerms {
     type Cell = u32;
     #[inline(always)]
     fn add(self, r: f32, g: u32, sum: &mut f32, seen: &mut u32, high: &mut u32) {
-        *sum += self.0.term(r - Packed::mean_q(g));
+        // Both biased by 2²³ and whole: the difference is exact.
+        *sum += self.0.term(r - Packed::biased_mean_q(g));
         *seen += g >> 31;
         *high += g >> 16;
     }
@@ -296,6 +307,36 @@ fn run_fused<S: Scoring, const K: usize>(
     }
 }
 
+/// [`run_fused`] for two quadruples of tags per pass over the poses.
+#[inline(always)]
+fn run_fused_twice<S: Scoring>(
+    scoring: S,
+    table: &[S::Cell; CELLS],
+    poses: &PoseLanes,
+    tags: &[[(f32, f32, f32); 4]; 2],
+    acc: &mut [f32],
+    in_view: &mut [u32],
+    high: &mut [u32],
+) {
+    let n = acc.len();
+    let (pc, ps, pu, pv) = (&poses.c[..n], &poses.s[..n], &poses.u[..n], &poses.v[..n]);
+    let (in_view, high) = (&mut in_view[..n], &mut high[..n]);
+    let [first, second] = tags;
+    for i in 0..n {
+        let (c, s, u, v) = (pc[i], ps[i], pu[i], pv[i]);
+        let (mut sum, mut seen, mut hi) = (acc[i], in_view[i], high[i]);
+        for &(tx, ty, r) in first {
+            let g = table[cell_of(c, s, u, v, tx, ty)];
+            scoring.add(r, g, &mut sum, &mut seen, &mut hi);
+        }
+        for &(tx, ty, r) in second {
+            let g = table[cell_of(c, s, u, v, tx, ty)];
+            scoring.add(r, g, &mut sum, &mut seen, &mut hi);
+        }
+        (acc[i], in_view[i], high[i]) = (sum, seen, hi);
+    }
+}
+
 /// Every read tag over every pose, four tags per pass, fused or in passes.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
@@ -316,6 +357,22 @@ fn run_all<S: Scoring>(
     gathered.clear();
     gathered.resize(scratch, S::Cell::default());
     let Sums { acc, in_view, high } = sums;
+    let mut tags = tags;
+    while fused && tags.len() >= 8 {
+        let (acc, in_view, high) = (&mut acc[..], &mut in_view[..], &mut high[..]);
+        if let [a, b, c, d, e, f, g, h, ref rest @ ..] = *tags {
+            run_fused_twice(
+                scoring,
+                table,
+                poses,
+                &[[a, b, c, d], [e, f, g, h]],
+                acc,
+                in_view,
+                high,
+            );
+            tags = rest;
+        }
+    }
     for chunk in tags.chunks(TAGS_PER_PASS) {
         let (cells, gathered) = (&mut cells[..], &mut gathered[..]);
         let (acc, in_view, high) = (&mut acc[..], &mut in_view[..], &mut high[..]);
@@ -403,7 +460,7 @@ fn add_reads_in(
             reads
                 .tags
                 .iter()
-                .map(|&(x, y, r)| (x, y, (r - packed.mean_lo) / packed.mean_step)),
+                .map(|&(x, y, r)| (x, y, packed.biased_rss(r))),
         );
         packed.mean_step * reads.inv_sigma
     } else {
@@ -582,7 +639,7 @@ mod tests {
                         ReadMode::Packed => {
                             let g = packed.cells[cell as usize];
                             let step = packed.mean_step * inv_sigma;
-                            let d = (r - packed.mean_lo) / packed.mean_step - Packed::mean_q(g);
+                            let d = packed.biased_rss(r) - Packed::biased_mean_q(g);
                             a += term(d, -0.5 * step * step);
                             seen += g >> 31;
                             high += g >> 16;

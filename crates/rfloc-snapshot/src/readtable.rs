@@ -660,12 +660,11 @@ impl MissField {
             wt,
             corners,
         } = scratch;
+        // Every value is written below: only new length is filled.
         for v in [&mut *tile, &mut *node, &mut *k0, &mut *k1] {
-            v.clear();
             v.resize(n, 0);
         }
         for v in [&mut *wx, &mut *wy, &mut *wt] {
-            v.clear();
             v.resize(n, 0.0);
         }
         // Every value is written below.

@@ -217,6 +217,8 @@ pub struct LikelihoodScratch {
     terms: Vec<f32>,
     reads: ReadScratch,
     field: FieldScratch,
+    /// The read tags relative to the first pose: `(x, y, RSS)`.
+    tags: Vec<(f32, f32, f32)>,
 }
 
 /// Learned tag positions, with the reader model tabulated for fast scoring.
@@ -508,20 +510,18 @@ impl TagMap {
             terms,
             reads,
             field: field_scratch,
+            tags,
         } = scratch;
         let (ox, oy) = poses.first().map_or((0.0, 0.0), |p| (p.x, p.y));
         let off = self.model.antenna_offset;
         #[allow(clippy::cast_possible_truncation)]
         let (inv_sigma, floor) = ((1.0 / self.read_sigma()) as f32, self.config.floor as f32);
         #[allow(clippy::cast_possible_truncation)]
-        let tags: Vec<(f32, f32, f32)> = obs
-            .reads
-            .iter()
-            .filter_map(|&(ti, r)| {
-                let t = self.tags.get(ti)?;
-                Some(((t.x - ox) as f32, (t.y - oy) as f32, r as f32))
-            })
-            .collect();
+        tags.clear();
+        tags.extend(obs.reads.iter().filter_map(|&(ti, r)| {
+            let t = self.tags.get(ti)?;
+            Some(((t.x - ox) as f32, (t.y - oy) as f32, r as f32))
+        }));
         let inv_t = 1.0 / self.config.temperature.max(1e-9);
         // Blocks of poses small enough that their buffers stay in the first-level cache while
         // every read tag passes over them.
@@ -569,7 +569,7 @@ impl TagMap {
                 field.sample_many(antenna, field_scratch, &mut acc[..m], &mut terms[..m]);
             }
             let read_tags = Reads {
-                tags: &tags,
+                tags,
                 inv_sigma,
                 floor,
                 mode,

@@ -222,6 +222,8 @@ pub struct TrackFilter {
     /// Work buffers of the tag-map likelihood.
     scratch: LikelihoodScratch,
     scores: Vec<(f64, f64)>,
+    /// The particles drawn by resampling (swapped with `poses`).
+    drawn: Vec<Pose2>,
 }
 
 /// A clone has the same state; its work buffers start empty (they hold nothing between
@@ -237,6 +239,7 @@ impl Clone for TrackFilter {
             w_slow: self.w_slow,
             scratch: LikelihoodScratch::default(),
             scores: Vec::new(),
+            drawn: Vec::new(),
         }
     }
 
@@ -375,6 +378,7 @@ impl TrackFilter {
             w_slow: 0.0,
             scratch: LikelihoodScratch::default(),
             scores: Vec::new(),
+            drawn: Vec::new(),
         }
     }
 
@@ -609,7 +613,8 @@ impl TrackFilter {
         let mut u = rng.random::<f64>() * step;
         let mut cum = self.weights.first().copied().unwrap_or(0.0);
         let mut i = 0usize;
-        let mut out = Vec::with_capacity(n);
+        let out = &mut self.drawn;
+        out.clear();
         for _ in 0..n {
             while u > cum && i + 1 < n {
                 i += 1;
@@ -620,8 +625,9 @@ impl TrackFilter {
             }
             u += step;
         }
-        self.poses = out;
-        self.weights = vec![step; self.poses.len()];
+        std::mem::swap(&mut self.poses, &mut self.drawn);
+        self.weights.clear();
+        self.weights.resize(self.poses.len(), step);
     }
 
     /// The estimate; `None` before the first snapshot with tags.
