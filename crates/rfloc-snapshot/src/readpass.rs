@@ -24,6 +24,9 @@ const CELLS: usize = TABLE_N * TABLE_N;
 /// bits.
 const TWO_23: f32 = 8_388_608.0;
 
+/// Read tags whose packed high halves (at most 2¹⁶ − 1 each) one `u32` per pose sums.
+const MAX_TAGS_PER_SUM: usize = 1 << 15;
+
 /// Read tags handled per pass over the poses (their terms are added in the tags' order).
 const TAGS_PER_PASS: usize = 4;
 
@@ -472,86 +475,89 @@ fn add_reads_in(
         scale: -0.5 * step * step,
         floor: reads.floor,
     };
-    let tags = &tags[..];
-    crate::simd::widest(
-        #[inline(always)]
-        || {
-            let n = poses.c.len();
-            for v in [&mut *in_view, &mut *high] {
-                v.clear();
-                v.resize(n, 0);
-            }
-            let acc = &mut acc[..n];
-            let sums = Sums {
-                acc: &mut acc[..],
-                in_view: &mut in_view[..],
-                high: &mut high[..],
-            };
-            match reads.mode {
-                ReadMode::Packed => run_all(
-                    PackedTerms(gauss),
-                    &packed.cells,
-                    poses,
-                    tags,
-                    fused,
-                    cells,
-                    packed_rows,
-                    sums,
-                ),
-                ReadMode::Full => run_all(
-                    FullTerms(gauss),
-                    table.pairs(),
-                    poses,
-                    tags,
-                    fused,
-                    cells,
-                    pair_rows,
-                    sums,
-                ),
-                ReadMode::ReadsOnly => run_all(
-                    ReadTerms(gauss),
-                    table.pairs(),
-                    poses,
-                    tags,
-                    fused,
-                    cells,
-                    pair_rows,
-                    sums,
-                ),
-            }
-            #[allow(clippy::cast_precision_loss)]
-            let read = tags.len() as f32;
-            let m = n.min(terms.len());
-            let terms = &mut terms[..m];
-            match reads.mode {
-                ReadMode::ReadsOnly => {
-                    for k in terms.iter_mut() {
-                        *k += read;
-                    }
+    // The per-pose integer sums stay below 2³¹ for up to `MAX_TAGS_PER_SUM` tags; a snapshot
+    // with more is added in parts (each part's miss terms then added on their own).
+    for tags in tags.chunks(MAX_TAGS_PER_SUM) {
+        crate::simd::widest(
+            #[inline(always)]
+            || {
+                let n = poses.c.len();
+                for v in [&mut *in_view, &mut *high] {
+                    v.clear();
+                    v.resize(n, 0);
                 }
-                ReadMode::Full => {
-                    for (k, &seen) in terms.iter_mut().zip(in_view.iter()) {
-                        #[allow(clippy::cast_precision_loss)]
-                        {
-                            *k += read - seen as f32;
+                let acc = &mut acc[..n];
+                let sums = Sums {
+                    acc: &mut acc[..],
+                    in_view: &mut in_view[..],
+                    high: &mut high[..],
+                };
+                match reads.mode {
+                    ReadMode::Packed => run_all(
+                        PackedTerms(gauss),
+                        &packed.cells,
+                        poses,
+                        tags,
+                        fused,
+                        cells,
+                        packed_rows,
+                        sums,
+                    ),
+                    ReadMode::Full => run_all(
+                        FullTerms(gauss),
+                        table.pairs(),
+                        poses,
+                        tags,
+                        fused,
+                        cells,
+                        pair_rows,
+                        sums,
+                    ),
+                    ReadMode::ReadsOnly => run_all(
+                        ReadTerms(gauss),
+                        table.pairs(),
+                        poses,
+                        tags,
+                        fused,
+                        cells,
+                        pair_rows,
+                        sums,
+                    ),
+                }
+                #[allow(clippy::cast_precision_loss)]
+                let read = tags.len() as f32;
+                let m = n.min(terms.len());
+                let terms = &mut terms[..m];
+                match reads.mode {
+                    ReadMode::ReadsOnly => {
+                        for k in terms.iter_mut() {
+                            *k += read;
+                        }
+                    }
+                    ReadMode::Full => {
+                        for (k, &seen) in terms.iter_mut().zip(in_view.iter()) {
+                            #[allow(clippy::cast_precision_loss)]
+                            {
+                                *k += read - seen as f32;
+                            }
+                        }
+                    }
+                    ReadMode::Packed => {
+                        let miss_step = packed.miss_step;
+                        for (i, k) in terms.iter_mut().enumerate() {
+                            let (seen, hi) = (in_view[i], high[i]);
+                            // The high halves' sum less the in-view marks: the miss terms' `q`s.
+                            #[allow(clippy::cast_precision_loss)]
+                            {
+                                acc[i] += (hi - (seen << 15)) as f32 * miss_step;
+                                *k += read - seen as f32;
+                            }
                         }
                     }
                 }
-                ReadMode::Packed => {
-                    let miss_step = packed.miss_step;
-                    for (i, k) in terms.iter_mut().enumerate() {
-                        let (seen, hi) = (in_view[i], high[i]);
-                        // The high halves' sum less the in-view marks: the miss terms' `q`s.
-                        #[allow(clippy::cast_precision_loss)]
-                        {
-                            acc[i] += (hi - (seen << 15)) as f32 * miss_step;
-                            *k += read - seen as f32;
-                        }
-                    }
-                }
-            }
-        },
-    );
+            },
+        );
+    }
 }
 
 #[cfg(test)]
@@ -656,6 +662,52 @@ mod tests {
                     assert_eq!(terms[i].to_bits(), k.to_bits(), "{what}");
                 }
             }
+        }
+    }
+
+    /// A snapshot of more read tags than one integer sum per pose holds (a corrupt or hostile
+    /// capture): no overflow (a debug build would panic), and the same as adding it in parts.
+    #[test]
+    fn more_tags_than_one_sum_holds_are_added_in_parts() {
+        let table = ReadTable::new(&ReadModel::seed000(1000.0, 2), 6.0);
+        let mut poses = PoseLanes::default();
+        poses.reset(3);
+        for i in 0..3 {
+            let (s, c) = sincos_f32(0.01 * i as f64);
+            [poses.c[i], poses.s[i], poses.u[i], poses.v[i]] = PoseLanes::lane(0.0, 0.0, c, s);
+        }
+        // Just in front of the antenna: in view, and the largest packed high halves.
+        let tags = vec![(0.3_f32, 0.0_f32, 1500.0_f32); 2 * MAX_TAGS_PER_SUM + 4000];
+        let cell = ReadTable::cell((0.3 - TABLE_X0 as f32) * 100.0, 0.0) as usize & (CELLS - 1);
+        let high = u64::from(table.packed().cells[cell] >> 16);
+        assert!(high * tags.len() as u64 > u64::from(u32::MAX), "{high}");
+        let n = poses.c.len();
+        let score = |tags: &[(f32, f32, f32)], acc: &mut Vec<f32>, terms: &mut Vec<f32>| {
+            let reads = Reads {
+                tags,
+                inv_sigma: 1.0 / 45.0,
+                floor: 6.0,
+                mode: ReadMode::Packed,
+            };
+            add_reads(
+                &table,
+                &reads,
+                &poses,
+                &mut ReadScratch::default(),
+                acc,
+                terms,
+            );
+        };
+        let (mut acc, mut terms) = (vec![0.0; n], vec![0.0; n]);
+        score(&tags, &mut acc, &mut terms);
+        let (mut parts, mut part_terms) = (vec![0.0; n], vec![0.0; n]);
+        for part in tags.chunks(MAX_TAGS_PER_SUM) {
+            score(part, &mut parts, &mut part_terms);
+        }
+        for i in 0..3 {
+            assert!(acc[i].is_finite(), "{}", acc[i]);
+            assert_eq!(acc[i].to_bits(), parts[i].to_bits());
+            assert_eq!(terms[i].to_bits(), part_terms[i].to_bits());
         }
     }
 

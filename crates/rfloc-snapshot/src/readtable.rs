@@ -30,7 +30,7 @@ const TABLE_STEP: f64 = 0.01;
 /// covers `x ∈ [TABLE_X0, TABLE_X0 + 2.55]`, `|y| ≤ 2.55`; beyond, a read tag counts as far
 /// away (mean RSS 0).
 pub(crate) const TABLE_N: usize = 256;
-const TABLE_X0: f64 = -0.06;
+pub(crate) const TABLE_X0: f64 = -0.06;
 /// Stored miss term of an in-view tag is at most this (so that it is negative).
 const IN_VIEW_MARK: f64 = -1e-7;
 /// Step of the mean-RSS axis of the 1-D miss table, reader units.
