@@ -563,7 +563,7 @@ fn add_reads_in(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::readtable::sincos_f32;
+    use crate::readtable::{sincos_f32, TABLE_X0};
     use crate::tagmap::ReadModel;
 
     /// `add_reads` in every mode and both loop shapes (fused and in passes), each in the
