@@ -665,6 +665,78 @@ mod tests {
         }
     }
 
+    /// Non-finite poses, tag positions and RSS (a corrupt capture, a diverged pose): no panic,
+    /// every term finite (a NaN or infinite difference is floored, a non-finite cell index is
+    /// clamped onto the table), and every loop shape and instruction set gives the same bits.
+    #[test]
+    fn non_finite_inputs_give_finite_terms_in_every_variant() {
+        let table = ReadTable::new(&ReadModel::seed000(1000.0, 2), 6.0);
+        let odd = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 1e30, -1e30, 0.5];
+        let mut poses = PoseLanes::default();
+        let n = odd.len() * odd.len();
+        poses.reset(n);
+        for i in 0..n {
+            let (a, b) = (odd[i % odd.len()], odd[i / odd.len()]);
+            [poses.c[i], poses.s[i], poses.u[i], poses.v[i]] = [a, b, b, a];
+        }
+        let tags: Vec<(f32, f32, f32)> = (0..11)
+            .map(|k| {
+                (
+                    odd[k % odd.len()],
+                    odd[(k + 2) % odd.len()],
+                    odd[(k + 3) % odd.len()],
+                )
+            })
+            .collect();
+        let padded = poses.c.len();
+        for mode in [ReadMode::Packed, ReadMode::Full, ReadMode::ReadsOnly] {
+            let reads = Reads {
+                tags: &tags,
+                inv_sigma: 1.0 / 45.0,
+                floor: 6.0,
+                mode,
+            };
+            let mut runs = Vec::new();
+            for (fused, baseline) in [(true, false), (false, false), (true, true), (false, true)] {
+                let (mut acc, mut terms) = (vec![0.0_f32; padded], vec![0.0_f32; padded]);
+                let mut run = || {
+                    add_reads_in(
+                        &table,
+                        &reads,
+                        &poses,
+                        &mut ReadScratch::default(),
+                        &mut acc,
+                        &mut terms,
+                        fused,
+                    );
+                };
+                if baseline {
+                    crate::simd::on_baseline(run);
+                } else {
+                    run();
+                }
+                assert!(
+                    acc.iter().chain(&terms).all(|v| v.is_finite()),
+                    "{mode:?}, fused {fused}, baseline {baseline}: {acc:?}"
+                );
+                runs.push((acc, terms));
+            }
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            for (acc, terms) in &runs[1..] {
+                assert_eq!(bits(acc), bits(&runs[0].0), "{mode:?}");
+                assert_eq!(bits(terms), bits(&runs[0].1), "{mode:?}");
+            }
+            // Every tag is floored at worst: a sum no lower than the tags' floors (and the
+            // miss terms taken back, at most one floor each, can only raise it).
+            let lowest = -6.0 * tags.len() as f32;
+            assert!(
+                runs[0].0.iter().all(|a| *a >= lowest),
+                "{mode:?}: {:?}",
+                runs[0].0
+            );
+        }
+    }
+
     /// A snapshot of more read tags than one integer sum per pose holds (a corrupt or hostile
     /// capture): no overflow (a debug build would panic), and the same as adding it in parts.
     #[test]
