@@ -566,6 +566,32 @@ mod tests {
     use crate::readtable::{sincos_f32, TABLE_X0};
     use crate::tagmap::ReadModel;
 
+    /// `add_reads_in` from `(acc0, terms0)` in both loop shapes (fused and in passes), each in
+    /// the widest instructions this CPU has and in the baseline ones: `(variant, acc, terms)`.
+    fn every_variant(
+        table: &ReadTable,
+        reads: &Reads<'_>,
+        poses: &PoseLanes,
+        scratch: &mut ReadScratch,
+        acc0: &[f32],
+        terms0: &[f32],
+    ) -> Vec<(String, Vec<f32>, Vec<f32>)> {
+        let mut runs = Vec::new();
+        for (fused, baseline) in [(true, false), (false, false), (true, true), (false, true)] {
+            let (mut acc, mut terms) = (acc0.to_vec(), terms0.to_vec());
+            let mut run = || {
+                add_reads_in(table, reads, poses, scratch, &mut acc, &mut terms, fused);
+            };
+            if baseline {
+                crate::simd::on_baseline(run);
+            } else {
+                run();
+            }
+            runs.push((format!("fused {fused}, baseline {baseline}"), acc, terms));
+        }
+        runs
+    }
+
     /// `add_reads` in every mode and both loop shapes (fused and in passes), each in the
     /// widest instructions this CPU has and in the baseline ones, against a plain loop over
     /// poses and tags: the same bits, for every number of tags modulo the pass, poses on and
@@ -607,27 +633,7 @@ mod tests {
                 floor,
                 mode,
             };
-            let mut runs = Vec::new();
-            for (fused, baseline) in [(true, false), (false, false), (true, true), (false, true)] {
-                let (mut acc, mut terms) = (acc0.clone(), terms0.clone());
-                let mut run = || {
-                    add_reads_in(
-                        &table,
-                        &reads,
-                        &poses,
-                        &mut scratch,
-                        &mut acc,
-                        &mut terms,
-                        fused,
-                    );
-                };
-                if baseline {
-                    crate::simd::on_baseline(run);
-                } else {
-                    run();
-                }
-                runs.push((format!("fused {fused}, baseline {baseline}"), acc, terms));
-            }
+            let runs = every_variant(&table, &reads, &poses, &mut scratch, &acc0, &terms0);
             let term = |d: f32, scale: f32| (d * d * scale).max(-floor);
             for i in 0..padded {
                 let (mut a, mut seen, mut high) = (acc0[i], 0_u32, 0_u32);
@@ -696,44 +702,25 @@ mod tests {
                 floor: 6.0,
                 mode,
             };
-            let mut runs = Vec::new();
-            for (fused, baseline) in [(true, false), (false, false), (true, true), (false, true)] {
-                let (mut acc, mut terms) = (vec![0.0_f32; padded], vec![0.0_f32; padded]);
-                let mut run = || {
-                    add_reads_in(
-                        &table,
-                        &reads,
-                        &poses,
-                        &mut ReadScratch::default(),
-                        &mut acc,
-                        &mut terms,
-                        fused,
-                    );
-                };
-                if baseline {
-                    crate::simd::on_baseline(run);
-                } else {
-                    run();
-                }
+            let zeros = vec![0.0_f32; padded];
+            let mut scratch = ReadScratch::default();
+            let runs = every_variant(&table, &reads, &poses, &mut scratch, &zeros, &zeros);
+            for (name, acc, terms) in &runs {
                 assert!(
-                    acc.iter().chain(&terms).all(|v| v.is_finite()),
-                    "{mode:?}, fused {fused}, baseline {baseline}: {acc:?}"
+                    acc.iter().chain(terms).all(|v| v.is_finite()),
+                    "{mode:?}, {name}: {acc:?}"
                 );
-                runs.push((acc, terms));
             }
             let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-            for (acc, terms) in &runs[1..] {
-                assert_eq!(bits(acc), bits(&runs[0].0), "{mode:?}");
-                assert_eq!(bits(terms), bits(&runs[0].1), "{mode:?}");
+            let (_, acc0, terms0) = &runs[0];
+            for (name, acc, terms) in &runs[1..] {
+                assert_eq!(bits(acc), bits(acc0), "{mode:?}, {name}");
+                assert_eq!(bits(terms), bits(terms0), "{mode:?}, {name}");
             }
             // Every tag is floored at worst: a sum no lower than the tags' floors (and the
             // miss terms taken back, at most one floor each, can only raise it).
             let lowest = -6.0 * tags.len() as f32;
-            assert!(
-                runs[0].0.iter().all(|a| *a >= lowest),
-                "{mode:?}: {:?}",
-                runs[0].0
-            );
+            assert!(acc0.iter().all(|a| *a >= lowest), "{mode:?}: {acc0:?}");
         }
     }
 
