@@ -24,8 +24,16 @@ const CELLS: usize = TABLE_N * TABLE_N;
 /// bits.
 const TWO_23: f32 = 8_388_608.0;
 
-/// Read tags whose packed high halves (at most 2¹⁶ − 1 each) one `u32` per pose sums.
+/// Read tags whose packed miss terms (at most 2¹⁵ − 1 each) one `u32` per pose sums.
 const MAX_TAGS_PER_SUM: usize = 1 << 15;
+
+/// Largest `q` of a packed mean (13 bits).
+const MEAN_Q_MAX: f32 = 8_191.0;
+/// Largest `q` of a packed miss term (15 bits).
+const MISS_Q_MAX: f32 = 32_767.0;
+/// Packed cells: the in-view bit, and the shift of the miss term's `q`.
+const IN_VIEW_BIT: u32 = 13;
+const MISS_SHIFT: u32 = 17;
 
 /// Read tags handled per pass over the poses (their terms are added in the tags' order).
 const TAGS_PER_PASS: usize = 4;
@@ -57,17 +65,23 @@ pub(crate) struct ReadScratch {
     pairs: Vec<u64>,
     /// Per pose: read tags the field counted as in view (their miss term was replaced).
     in_view: Vec<u32>,
-    /// Per pose: the sum of the read tags' packed high halves (miss terms and in-view marks).
+    /// Per pose: the sum of the read tags' packed miss terms' `q`s.
     high: Vec<u32>,
+    /// Per pose (packed cells): the sum of the read tags' floored squared differences.
+    squares: Vec<f32>,
     /// The tags with their RSS in the units of the mode.
     tags: Vec<(f32, f32, f32)>,
 }
 
-/// The read table packed in 32 bits per cell: bits 0–15 the mean RSS as `lo + q·mean_step`
-/// (`q` rounded, 0–65535, over the table's range of means), bits 16–30 the miss term as
-/// `−q·miss_step` (0–32767 over `[−floor, 0]`), bit 31 set when the tag is in view. The
-/// rounding moves a mean by at most half a step (1/131070 of the range of means) and a miss
-/// term by at most `floor / 65534`.
+/// The read table packed in 32 bits per cell: bits 0–12 the mean RSS as `lo + q·mean_step`
+/// (`q` rounded, 0–8191, over the table's range of means), bit 13 set when the tag is in view,
+/// bits 14–16 zero, bits 17–31 the miss term as `−q·miss_step` (0–32767 over `[−floor, 0]`).
+/// The rounding moves a mean by at most half a step (1/16382 of the range of means: 0.44 RSS
+/// units for seed 000's model, whose σ is 169) and a miss term by at most `floor / 65534`.
+///
+/// Bits 13 and up shifted down by 13 hold the in-view mark in bit 0 and the miss term's `q`
+/// from bit 4: the sum of up to 15 of them keeps the in-view count in its low four bits and
+/// the miss terms' sum above, so that one integer addition per pair counts both.
 #[derive(Clone)]
 pub(crate) struct Packed {
     cells: std::sync::Arc<[u32; CELLS]>,
@@ -87,16 +101,16 @@ impl Packed {
                 (lo.min(p[0]), hi.max(p[0]))
             });
         let (lo, hi) = if lo <= hi { (lo, hi) } else { (0.0, 0.0) };
-        let mean_step = if hi > lo { (hi - lo) / 65_535.0 } else { 1.0 };
+        let mean_step = if hi > lo { (hi - lo) / MEAN_Q_MAX } else { 1.0 };
         #[allow(clippy::cast_possible_truncation)]
-        let miss_step = ((floor / 32_767.0) as f32).max(f32::MIN_POSITIVE);
+        let miss_step = ((floor / f64::from(MISS_Q_MAX)) as f32).max(f32::MIN_POSITIVE);
         let mut cells = zeroed::<u32>();
         for (out, &[m, v]) in cells.iter_mut().zip(pairs) {
             #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-            let q_mean = ((m - lo) / mean_step).round().clamp(0.0, 65_535.0) as u32;
+            let q_mean = ((m - lo) / mean_step).round().clamp(0.0, MEAN_Q_MAX) as u32;
             #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-            let q_miss = (-v / miss_step).round().clamp(0.0, 32_767.0) as u32;
-            *out = q_mean | (q_miss << 16) | (u32::from(v < 0.0) << 31);
+            let q_miss = (-v / miss_step).round().clamp(0.0, MISS_Q_MAX) as u32;
+            *out = q_mean | (u32::from(v < 0.0) << IN_VIEW_BIT) | (q_miss << MISS_SHIFT);
         }
         Self {
             cells: cells.into(),
@@ -110,7 +124,7 @@ impl Packed {
     /// integer-to-float conversion: the float with `q` in its low mantissa bits.
     #[inline(always)]
     fn biased_mean_q(g: u32) -> f32 {
-        f32::from_bits((g & 0xFFFF) | 0x4B00_0000)
+        f32::from_bits((g & ((1 << IN_VIEW_BIT) - 1)) | 0x4B00_0000)
     }
 
     /// An RSS in the units of the packed means, biased like [`Packed::biased_mean_q`]:
@@ -124,11 +138,11 @@ impl Packed {
     #[cfg(test)]
     fn unpack(&self, g: u32) -> (f32, f32, bool) {
         #[allow(clippy::cast_precision_loss)]
-        let miss = -(((g >> 16) & 0x7FFF) as f32) * self.miss_step;
+        let miss = -((g >> MISS_SHIFT) as f32) * self.miss_step;
         (
             self.mean_lo + (Self::biased_mean_q(g) - TWO_23) * self.mean_step,
             miss,
-            g >> 31 == 1,
+            (g >> IN_VIEW_BIT) & 1 == 1,
         )
     }
 }
@@ -157,9 +171,12 @@ pub(crate) fn pair_of_bits(g: u64) -> [f32; 2] {
 /// One way to score a read tag against a table cell.
 trait Scoring: Copy {
     type Cell: Copy + Default;
-    /// Adds the term of a tag read with RSS `r` whose cell holds `g`: to the pose's sum, its
-    /// in-view count and (packed cells) its sum of high halves.
-    fn add(self, r: f32, g: Self::Cell, sum: &mut f32, seen: &mut u32, high: &mut u32);
+    /// Adds the term of a tag read with RSS `r` whose cell holds `g`: to the pose's sum, and
+    /// to `marks`, which [`Scoring::settle`] turns into counts after at most 15 tags.
+    fn add(self, r: f32, g: Self::Cell, sum: &mut f32, marks: &mut u32);
+    /// Adds what `marks` counted to the pose's in-view count and (packed cells) its sum of
+    /// miss terms' `q`s.
+    fn settle(self, marks: u32, seen: &mut u32, high: &mut u32);
 }
 
 /// The floored Gaussian term `max(d² · scale, −floor)` (`scale = −½/σ²` in the units of `d`).
@@ -181,19 +198,29 @@ impl Gauss {
     }
 }
 
-/// [`ReadMode::Packed`]: `r` as [`Packed::biased_rss`]; the miss terms are summed as integers
-/// in the high halves and subtracted once per pose.
+/// [`ReadMode::Packed`]: `r` as [`Packed::biased_rss`]. Per pair the squared difference
+/// floored at `cap` (`max(d²·scale, −floor) = scale·min(d², cap)` with `cap = −floor/scale`),
+/// scaled once per pose; the in-view marks and miss terms in one integer sum.
 #[derive(Clone, Copy)]
-struct PackedTerms(Gauss);
+struct PackedTerms {
+    cap: f32,
+}
 
 impl Scoring for PackedTerms {
     type Cell = u32;
     #[inline(always)]
-    fn add(self, r: f32, g: u32, sum: &mut f32, seen: &mut u32, high: &mut u32) {
-        // Both biased by 2²³ and whole: the difference is exact.
-        *sum += self.0.term(r - Packed::biased_mean_q(g));
-        *seen += g >> 31;
-        *high += g >> 16;
+    fn add(self, r: f32, g: u32, sum: &mut f32, marks: &mut u32) {
+        // Both biased by 2²³ and whole: the difference is exact. A difference that is not a
+        // number is floored.
+        let d = r - Packed::biased_mean_q(g);
+        let d2 = d * d;
+        *sum += if d2 < self.cap { d2 } else { self.cap };
+        *marks += g >> IN_VIEW_BIT;
+    }
+    #[inline(always)]
+    fn settle(self, marks: u32, seen: &mut u32, high: &mut u32) {
+        *seen += marks & 0xF;
+        *high += marks >> 4;
     }
 }
 
@@ -204,11 +231,15 @@ struct FullTerms(Gauss);
 impl Scoring for FullTerms {
     type Cell = u64;
     #[inline(always)]
-    fn add(self, r: f32, g: u64, sum: &mut f32, seen: &mut u32, _: &mut u32) {
+    fn add(self, r: f32, g: u64, sum: &mut f32, marks: &mut u32) {
         let [m, v] = pair_of_bits(g);
         *sum += self.0.term(r - m) - v;
         // The sign bit marks a tag in view.
-        *seen += v.to_bits() >> 31;
+        *marks += v.to_bits() >> 31;
+    }
+    #[inline(always)]
+    fn settle(self, marks: u32, seen: &mut u32, _: &mut u32) {
+        *seen += marks;
     }
 }
 
@@ -219,9 +250,11 @@ struct ReadTerms(Gauss);
 impl Scoring for ReadTerms {
     type Cell = u64;
     #[inline(always)]
-    fn add(self, r: f32, g: u64, sum: &mut f32, _: &mut u32, _: &mut u32) {
+    fn add(self, r: f32, g: u64, sum: &mut f32, _: &mut u32) {
         *sum += self.0.term(r - pair_of_bits(g)[0]);
     }
+    #[inline(always)]
+    fn settle(self, _: u32, _: &mut u32, _: &mut u32) {}
 }
 
 /// The cell of a tag at `(tx, ty)` seen from pose lane `(c, s, u, v)`.
@@ -274,10 +307,12 @@ fn run_in_passes<S: Scoring, const K: usize>(
     let g: [&[S::Cell]; K] = std::array::from_fn(|_| rows.next().unwrap_or(&[]));
     let g = g.map(|rows| &rows[..n]);
     for i in 0..n {
-        let (mut sum, mut seen, mut hi) = (acc[i], in_view[i], high[i]);
+        let (mut sum, mut marks) = (acc[i], 0);
         for (&(_, _, r), rows) in tags.iter().zip(&g) {
-            scoring.add(r, rows[i], &mut sum, &mut seen, &mut hi);
+            scoring.add(r, rows[i], &mut sum, &mut marks);
         }
+        let (mut seen, mut hi) = (in_view[i], high[i]);
+        scoring.settle(marks, &mut seen, &mut hi);
         (acc[i], in_view[i], high[i]) = (sum, seen, hi);
     }
 }
@@ -301,11 +336,13 @@ fn run_fused<S: Scoring, const K: usize>(
     let (in_view, high) = (&mut in_view[..n], &mut high[..n]);
     for i in 0..n {
         let (c, s, u, v) = (pc[i], ps[i], pu[i], pv[i]);
-        let (mut sum, mut seen, mut hi) = (acc[i], in_view[i], high[i]);
+        let (mut sum, mut marks) = (acc[i], 0);
         for &(tx, ty, r) in tags {
             let g = table[cell_of(c, s, u, v, tx, ty)];
-            scoring.add(r, g, &mut sum, &mut seen, &mut hi);
+            scoring.add(r, g, &mut sum, &mut marks);
         }
+        let (mut seen, mut hi) = (in_view[i], high[i]);
+        scoring.settle(marks, &mut seen, &mut hi);
         (acc[i], in_view[i], high[i]) = (sum, seen, hi);
     }
 }
@@ -327,15 +364,17 @@ fn run_fused_twice<S: Scoring>(
     let [first, second] = tags;
     for i in 0..n {
         let (c, s, u, v) = (pc[i], ps[i], pu[i], pv[i]);
-        let (mut sum, mut seen, mut hi) = (acc[i], in_view[i], high[i]);
+        let (mut sum, mut marks) = (acc[i], 0);
         for &(tx, ty, r) in first {
             let g = table[cell_of(c, s, u, v, tx, ty)];
-            scoring.add(r, g, &mut sum, &mut seen, &mut hi);
+            scoring.add(r, g, &mut sum, &mut marks);
         }
         for &(tx, ty, r) in second {
             let g = table[cell_of(c, s, u, v, tx, ty)];
-            scoring.add(r, g, &mut sum, &mut seen, &mut hi);
+            scoring.add(r, g, &mut sum, &mut marks);
         }
+        let (mut seen, mut hi) = (in_view[i], high[i]);
+        scoring.settle(marks, &mut seen, &mut hi);
         (acc[i], in_view[i], high[i]) = (sum, seen, hi);
     }
 }
@@ -454,6 +493,7 @@ fn add_reads_in(
         pairs: pair_rows,
         in_view,
         high,
+        squares,
         tags,
     } = scratch;
     // Packed: the RSS in the packed mean's units, `(r − lo) / step`, and σ with it.
@@ -475,6 +515,15 @@ fn add_reads_in(
         scale: -0.5 * step * step,
         floor: reads.floor,
     };
+    // Packed: `max(d²·scale, −floor)` as `scale·min(d², cap)`; the cap bounded so that the
+    // sum of a part's tags stays finite (a term then differs from the floor by at most
+    // `10³⁰·|scale|`); no cap (zero terms) when the scale is zero or the floor not a number.
+    let cap = -gauss.floor / gauss.scale;
+    let cap = if gauss.scale < 0.0 && cap >= 0.0 {
+        cap.min(1e30)
+    } else {
+        0.0
+    };
     // The per-pose integer sums stay below 2³¹ for up to `MAX_TAGS_PER_SUM` tags; a snapshot
     // with more is added in parts (each part's miss terms then added on their own).
     for tags in tags.chunks(MAX_TAGS_PER_SUM) {
@@ -487,14 +536,22 @@ fn add_reads_in(
                     v.resize(n, 0);
                 }
                 let acc = &mut acc[..n];
+                // Packed: the squares are summed from zero and scaled at the end.
+                let packed_mode = reads.mode == ReadMode::Packed;
+                squares.clear();
+                squares.resize(if packed_mode { n } else { 0 }, 0.0);
                 let sums = Sums {
-                    acc: &mut acc[..],
+                    acc: if packed_mode {
+                        &mut squares[..]
+                    } else {
+                        &mut acc[..]
+                    },
                     in_view: &mut in_view[..],
                     high: &mut high[..],
                 };
                 match reads.mode {
                     ReadMode::Packed => run_all(
-                        PackedTerms(gauss),
+                        PackedTerms { cap },
                         &packed.cells,
                         poses,
                         tags,
@@ -543,13 +600,14 @@ fn add_reads_in(
                         }
                     }
                     ReadMode::Packed => {
-                        let miss_step = packed.miss_step;
+                        let (miss_step, scale) = (packed.miss_step, gauss.scale);
+                        let squares = &squares[..n];
                         for (i, k) in terms.iter_mut().enumerate() {
                             let (seen, hi) = (in_view[i], high[i]);
-                            // The high halves' sum less the in-view marks: the miss terms' `q`s.
                             #[allow(clippy::cast_precision_loss)]
                             {
-                                acc[i] += (hi - (seen << 15)) as f32 * miss_step;
+                                acc[i] += squares[i] * scale;
+                                acc[i] += hi as f32 * miss_step;
                                 *k += read - seen as f32;
                             }
                         }
@@ -636,7 +694,10 @@ mod tests {
             let runs = every_variant(&table, &reads, &poses, &mut scratch, &acc0, &terms0);
             let term = |d: f32, scale: f32| (d * d * scale).max(-floor);
             for i in 0..padded {
-                let (mut a, mut seen, mut high) = (acc0[i], 0_u32, 0_u32);
+                let (mut a, mut seen, mut high, mut squares) = (acc0[i], 0_u32, 0_u32, 0.0_f32);
+                let step = packed.mean_step * inv_sigma;
+                let packed_scale = -0.5 * step * step;
+                let cap = -floor / packed_scale;
                 for &(tx, ty, r) in &tags {
                     let (c, s, u, v) = (poses.c[i], poses.s[i], poses.u[i], poses.v[i]);
                     let cell = ReadTable::cell(c * tx + s * ty + u, c * ty - s * tx + v) & 0xFFFF;
@@ -650,16 +711,16 @@ mod tests {
                         }
                         ReadMode::Packed => {
                             let g = packed.cells[cell as usize];
-                            let step = packed.mean_step * inv_sigma;
                             let d = packed.biased_rss(r) - Packed::biased_mean_q(g);
-                            a += term(d, -0.5 * step * step);
-                            seen += g >> 31;
-                            high += g >> 16;
+                            squares += (d * d).min(cap);
+                            seen += (g >> 13) & 1;
+                            high += g >> 17;
                         }
                     }
                 }
                 if mode == ReadMode::Packed {
-                    a += (high - (seen << 15)) as f32 * packed.miss_step;
+                    a += squares * packed_scale;
+                    a += high as f32 * packed.miss_step;
                 }
                 let k = terms0[i] + (count as f32 - seen as f32);
                 for (name, acc, terms) in &runs {
@@ -735,11 +796,11 @@ mod tests {
             let (s, c) = sincos_f32(0.01 * i as f64);
             [poses.c[i], poses.s[i], poses.u[i], poses.v[i]] = PoseLanes::lane(0.0, 0.0, c, s);
         }
-        // Just in front of the antenna: in view, and the largest packed high halves.
-        let tags = vec![(0.3_f32, 0.0_f32, 1500.0_f32); 2 * MAX_TAGS_PER_SUM + 4000];
+        // Just in front of the antenna: in view, and a large miss term.
+        let tags = vec![(0.3_f32, 0.0_f32, 1500.0_f32); 10 * MAX_TAGS_PER_SUM + 4000];
         let cell = ReadTable::cell((0.3 - TABLE_X0 as f32) * 100.0, 0.0) as usize & (CELLS - 1);
-        let high = u64::from(table.packed().cells[cell] >> 16);
-        assert!(high * tags.len() as u64 > u64::from(u32::MAX), "{high}");
+        let q = u64::from(table.packed().cells[cell] >> MISS_SHIFT);
+        assert!(q * tags.len() as u64 > u64::from(u32::MAX), "{q}");
         let n = poses.c.len();
         let score = |tags: &[(f32, f32, f32)], acc: &mut Vec<f32>, terms: &mut Vec<f32>| {
             let reads = Reads {

@@ -638,26 +638,20 @@ impl TrackFilter {
         }
         // Heaviest 0.3 m cell.
         const CELL: f64 = 0.3;
-        let floor = crate::readtable::floor_f64;
-        // The particles as columns (the sums below load them as whole vectors), then their
-        // cell coordinates as whole floats (conversions to integers do not vectorise), in
-        // plain loops over slices (a `collect` would call a fold that is not inlined into the
-        // wider instructions' variant).
+        // The particles as columns (the sums below load them as whole vectors), in a plain
+        // loop over slices (a `collect` would call a fold that is not inlined into the wider
+        // instructions' variant).
         let n = self.poses.len();
         let (mut xs, mut ys, mut ts) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-        let (mut kx, mut ky) = (vec![0.0; n], vec![0.0; n]);
         crate::simd::widest(
             #[inline(always)]
             || {
                 for (((x, y), t), p) in xs.iter_mut().zip(&mut ys).zip(&mut ts).zip(&self.poses) {
                     (*x, *y, *t) = (p.x, p.y, p.theta);
                 }
-                for (((kx, ky), x), y) in kx.iter_mut().zip(&mut ky).zip(&xs).zip(&ys) {
-                    (*kx, *ky) = (floor(x / CELL), floor(y / CELL));
-                }
             },
         );
-        let cells = CellWeights::new(&kx, &ky, &self.weights);
+        let cells = CellWeights::new(&xs, &ys, &self.weights, CELL);
         // The cell whose 3×3 neighbourhood is heaviest (a diffuse mode beats a tight speck);
         // ties go to the smallest cell.
         let best = cells
@@ -734,19 +728,21 @@ enum CellWeights {
 }
 
 impl CellWeights {
-    /// The weights of the particles in cells `(kx, ky)` (whole numbers, as floats), summed per
-    /// cell (in four interleaved partial sums).
-    fn new(kx: &[f64], ky: &[f64], weights: &[f64]) -> Self {
-        let n = kx.len().min(ky.len()).min(weights.len());
-        let (kx, ky, weights) = (&kx[..n], &ky[..n], &weights[..n]);
+    /// The weights of the particles at `(x, y)`, summed per cell of side `cell` (cell
+    /// `(⌊x/cell⌋, ⌊y/cell⌋)`; in four interleaved partial sums).
+    fn new(xs: &[f64], ys: &[f64], weights: &[f64], cell: f64) -> Self {
+        let n = xs.len().min(ys.len()).min(weights.len());
+        let (xs, ys, weights) = (&xs[..n], &ys[..n], &weights[..n]);
+        // Cell coordinates as whole floats (conversions to integers do not vectorise).
+        let key = |v: f64| crate::readtable::floor_f64(v / cell);
         // The bounding box (`lane_max`: vectorised; keys that are not a number are left out).
         let (x0, x1) = (
-            -crate::simd::lane_max(kx, |&x| -x),
-            crate::simd::lane_max(kx, |&x| x),
+            -crate::simd::lane_max(xs, |&x| -key(x)),
+            crate::simd::lane_max(xs, |&x| key(x)),
         );
         let (y0, y1) = (
-            -crate::simd::lane_max(ky, |&y| -y),
-            crate::simd::lane_max(ky, |&y| y),
+            -crate::simd::lane_max(ys, |&y| -key(y)),
+            crate::simd::lane_max(ys, |&y| key(y)),
         );
         let (nx, ny) = (x1 - x0 + 1.0, y1 - y0 + 1.0);
         if x0 <= x1 && nx <= 256.0 && ny <= 256.0 {
@@ -763,9 +759,10 @@ impl CellWeights {
                     for (((i, m), (&x, &y)), &v) in index
                         .iter_mut()
                         .zip(&mut mass)
-                        .zip(kx.iter().zip(ky))
+                        .zip(xs.iter().zip(ys))
                         .zip(weights)
                     {
+                        let (x, y) = (key(x), key(y));
                         let finite = x.is_finite() && y.is_finite();
                         let f = (y - y0) * nx + (x - x0);
                         (*i, *m) = if finite {
@@ -800,8 +797,8 @@ impl CellWeights {
             }
         } else {
             let mut cells = std::collections::HashMap::new();
-            for ((&x, &y), &v) in kx.iter().zip(ky).zip(weights) {
-                *cells.entry((x as i64, y as i64)).or_insert(0.0) += v;
+            for ((&x, &y), &v) in xs.iter().zip(ys).zip(weights) {
+                *cells.entry((key(x) as i64, key(y) as i64)).or_insert(0.0) += v;
             }
             Self::Sparse(cells)
         }
@@ -1059,7 +1056,7 @@ mod tests {
         let kx = [2.0, 3.0, 2.0, f64::NAN, -1.0];
         let ky = [5.0, 5.0, 5.0, 5.0, 7.0];
         let w = [0.25, 0.125, 0.5, 1.0, 0.0625];
-        let cells = CellWeights::new(&kx, &ky, &w);
+        let cells = CellWeights::new(&kx, &ky, &w, 1.0);
         assert!(matches!(cells, CellWeights::Dense { nx: 5, ny: 3, .. }));
         assert_eq!(cells.get((2, 5)), 0.75);
         assert_eq!(cells.get((3, 5)), 0.125);
@@ -1068,7 +1065,7 @@ mod tests {
         let mut occupied: Vec<_> = cells.occupied().collect();
         occupied.sort_unstable();
         assert_eq!(occupied, [(-1, 7), (2, 5), (3, 5)]);
-        let far = CellWeights::new(&[0.0, f64::INFINITY], &[0.0, 0.0], &[0.5, 0.5]);
+        let far = CellWeights::new(&[0.0, f64::INFINITY], &[0.0, 0.0], &[0.5, 0.5], 1.0);
         assert!(matches!(far, CellWeights::Sparse(_)));
         assert_eq!(far.get((0, 0)), 0.5);
     }
