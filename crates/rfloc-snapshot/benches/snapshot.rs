@@ -71,6 +71,9 @@ fn tag_map(c: &mut Criterion) {
     let truth = rfloc_pose::Pose2::new(2.5, 2.5, 0.4);
     let snapshot = problems::tag_snapshot(&model, &tags, &truth);
     let step = rfloc_pose::Pose2::new(0.05, 0.0, 0.02);
+    // Updates take microseconds: more, shorter samples, so that the median is not decided by a
+    // few seconds in which the machine ran slower.
+    g.sample_size(60);
     for particles in [1000, 1500] {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
         let mut filter = TrackFilter::new(TrackConfig {
@@ -109,6 +112,7 @@ fn tag_map(c: &mut Criterion) {
             })
         });
     }
+    g.sample_size(10);
     g.bench_function("miss_field_all_tiles_800_tags", |b| {
         b.iter(|| {
             let fresh = TagMap::from_tags(model.clone(), map.config, map.tags.clone());
