@@ -440,7 +440,7 @@ impl TagMap {
     ///
     /// The read tags' means and miss terms come from the table packed in 32 bits per cell:
     /// one look-up per pair of pose and read tag (16 at a time with AVX-512). Packing rounds a
-    /// mean by at most 1/131070 of the table's range of means and a miss term by at most
+    /// mean by at most 1/16382 of the table's range of means and a miss term by at most
     /// `floor / 65534`; [`TagMap::log_likelihoods_unpacked`] takes them as tabulated.
     pub fn log_likelihoods(
         &self,
