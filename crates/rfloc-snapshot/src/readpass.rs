@@ -38,6 +38,10 @@ const MISS_SHIFT: u32 = 17;
 /// Read tags handled per pass over the poses (their terms are added in the tags' order).
 const TAGS_PER_PASS: usize = 4;
 
+/// Most tags whose marks one [`Scoring::settle`] may take (the packed in-view count has four
+/// bits).
+const MAX_TAGS_PER_SETTLE: usize = 15;
+
 /// How the read tags are scored (see the module documentation).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum ReadMode {
@@ -175,7 +179,9 @@ trait Scoring: Copy {
     /// to `marks`, which [`Scoring::settle`] turns into counts after at most 15 tags.
     fn add(self, r: f32, g: Self::Cell, sum: &mut f32, marks: &mut u32);
     /// Adds what `marks` counted to the pose's in-view count and (packed cells) its sum of
-    /// miss terms' `q`s.
+    /// miss terms' `q`s. The loops settle into local copies and then store them: settling
+    /// through references into the per-pose slices kept the compiler from vectorising the
+    /// fused loop (`log_likelihoods` 150 against 50 µs).
     fn settle(self, marks: u32, seen: &mut u32, high: &mut u32);
 }
 
@@ -288,6 +294,7 @@ fn run_in_passes<S: Scoring, const K: usize>(
     in_view: &mut [u32],
     high: &mut [u32],
 ) {
+    const { assert!(K <= MAX_TAGS_PER_SETTLE) };
     let n = acc.len();
     let (pc, ps, pu, pv) = (&poses.c[..n], &poses.s[..n], &poses.u[..n], &poses.v[..n]);
     let (in_view, high) = (&mut in_view[..n], &mut high[..n]);
@@ -331,6 +338,7 @@ fn run_fused<S: Scoring, const K: usize>(
     in_view: &mut [u32],
     high: &mut [u32],
 ) {
+    const { assert!(K <= MAX_TAGS_PER_SETTLE) };
     let n = acc.len();
     let (pc, ps, pu, pv) = (&poses.c[..n], &poses.s[..n], &poses.u[..n], &poses.v[..n]);
     let (in_view, high) = (&mut in_view[..n], &mut high[..n]);
@@ -361,6 +369,7 @@ fn run_fused_twice<S: Scoring>(
     let n = acc.len();
     let (pc, ps, pu, pv) = (&poses.c[..n], &poses.s[..n], &poses.u[..n], &poses.v[..n]);
     let (in_view, high) = (&mut in_view[..n], &mut high[..n]);
+    const { assert!(8 <= MAX_TAGS_PER_SETTLE) };
     let [first, second] = tags;
     for i in 0..n {
         let (c, s, u, v) = (pc[i], ps[i], pu[i], pv[i]);
