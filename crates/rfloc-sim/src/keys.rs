@@ -71,7 +71,8 @@ const HF_INIT: &[&str] = &[
 
 /// Seed 003: odometry error (wheel slip, Table 3.1's σ_v and σ_ω, the axle track that splits
 /// the wheel travels, the wheel diameter against the base's 0.195 m calibration), the body
-/// (walls), the XBee model, sweep steps, waypoints and switching distance, model mismatch.
+/// (walls), the XBee model, sweep steps and cadence, sweeps at the start, waypoints and switching
+/// distance, model mismatch.
 const EKF_SLAM: &[&str] = &[
     "robot.drive.sigma_v",
     "robot.drive.sigma_omega",
@@ -82,6 +83,7 @@ const EKF_SLAM: &[&str] = &[
     "sensors.xbee.*",
     "params.sweep_steps",
     "params.sweep_every_s",
+    "params.start_sweeps",
     "params.waypoint_switch_m",
     "waypoints",
     "mismatch.*",
@@ -276,6 +278,7 @@ const RANGES: &[(&str, Range)] = &[
     ("params.readings_per_turn", Range::closed(3.0, 360.0, "")),
     ("params.sweep_steps", Range::closed(3.0, 3600.0, "")),
     ("params.sweep_every_s", Range::closed(0.5, 600.0, "s")),
+    ("params.start_sweeps", Range::closed(1.0, 1000.0, "")),
     ("params.waypoint_switch_m", Range::closed(0.01, 10.0, "m")),
     ("params.particles", Range::closed(1.0, 100_000.0, "")),
     ("params.grid_cell_m", Range::closed(0.01, 2.0, "m")),

@@ -175,6 +175,9 @@ pub struct PipelineParams {
     /// sweep; 3 s when absent).
     #[serde(default)]
     pub sweep_every_s: Option<f64>,
+    /// Seed 003: sweeps taken standing at the start pose before driving (8 when absent).
+    #[serde(default)]
+    pub start_sweeps: Option<usize>,
     /// Seed 003: waypoint switching distance ρ_min, metres.
     #[serde(default)]
     pub waypoint_switch_m: Option<f64>,

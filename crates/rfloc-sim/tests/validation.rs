@@ -182,6 +182,13 @@ fn numbers_out_of_range_are_rejected_at_their_own_line() {
         ),
         (
             EKF,
+            "[params]",
+            "[params]\nstart_sweeps = 0",
+            14,
+            "params.start_sweeps",
+        ),
+        (
+            EKF,
             "[[2.0, 2.0], [2.0, 7.0]]",
             "[[2.0, 2.0], [inf, 7.0]]",
             7,

@@ -299,3 +299,34 @@ fn numbers_out_of_range_are_configuration_errors() {
         assert!(out.contains(&format!("key `{key}`")), "{new}: {out}");
     }
 }
+
+/// The EKF-SLAM pipeline's count of sweeps at the start pose: at least one, at most 1000.
+#[test]
+fn start_sweeps_out_of_range_are_configuration_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let xbee = std::fs::read_to_string(workspace().join("config/sim-xbee.toml")).unwrap();
+    for (i, bad) in ["0", "1001", "-1"].iter().enumerate() {
+        let text = xbee.replacen(
+            "beacon_init_with_range = true",
+            &format!("beacon_init_with_range = true\nstart_sweeps = {bad}"),
+            1,
+        );
+        assert_ne!(
+            text, xbee,
+            "config/sim-xbee.toml has no beacon_init_with_range"
+        );
+        let (code, out) = validate(&write(&dir, &format!("start{i}.toml"), &text), &[]);
+        assert_eq!(code, 78, "start_sweeps = {bad}: {out}");
+        assert!(out.contains("start_sweeps"), "start_sweeps = {bad}: {out}");
+    }
+    let good = xbee.replacen(
+        "beacon_init_with_range = true",
+        "beacon_init_with_range = true\nstart_sweeps = 8",
+        1,
+    );
+    let (code, out) = validate(
+        &write(&dir, "start-good.toml", &good),
+        &["--no-device-check"],
+    );
+    assert_eq!(code, 0, "{out}");
+}

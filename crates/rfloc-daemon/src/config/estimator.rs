@@ -169,6 +169,7 @@ fn check_ekfslam(e: &EkfSlamSettings, c: &mut Checks<'_, '_>) {
     c.one_of("measurement", &e.measurement, &["range", "rssi"]);
     c.range("sweep_step_deg", e.sweep_step_deg, 0.1, 90.0, "°");
     c.positive("sweep_every_s", e.sweep_every_s, 3600.0, " s");
+    c.count("start_sweeps", u64::from(e.start_sweeps), 1, 1000);
     c.positive("sweep_timeout_s", e.sweep_timeout_s, 3600.0, " s");
     c.positive("range_sigma_m", e.range_sigma_m, 1000.0, " m");
     c.positive("rssi_sigma_db", e.rssi_sigma_db, 100.0, " dB");
@@ -482,6 +483,12 @@ pub struct EkfSlamSettings {
     /// Driving time between two sweeps, seconds (the robot stops to sweep).
     #[serde(default = "default_sweep_every")]
     pub sweep_every_s: f64,
+    /// Sweeps taken standing at the start pose before driving (with waypoints). The start is
+    /// the one pose the filter knows exactly, so these bearings fix the map's frame; each one
+    /// averages the bearing errors that differ from sweep to sweep (fast fading, people
+    /// moving), not the static multipath of one spot.
+    #[serde(default = "default_start_sweeps")]
+    pub start_sweeps: u32,
     /// A sweep not reported within this many seconds is given up and driving resumes.
     #[serde(default = "default_sweep_timeout")]
     pub sweep_timeout_s: f64,
@@ -574,6 +581,7 @@ impl Default for EkfSlamSettings {
             waypoints: Vec::new(),
             start: [0.0; 3],
             sweep_every_s: default_sweep_every(),
+            start_sweeps: default_start_sweeps(),
             sweep_timeout_s: default_sweep_timeout(),
             range_sigma_m: default_range_sigma(),
             rssi_sigma_db: default_rssi_sigma(),
@@ -596,6 +604,9 @@ impl Default for EkfSlamSettings {
 
 fn default_sweep_every() -> f64 {
     3.0
+}
+fn default_start_sweeps() -> u32 {
+    1
 }
 fn default_sweep_timeout() -> f64 {
     120.0

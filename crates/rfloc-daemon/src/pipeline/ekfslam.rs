@@ -2,8 +2,8 @@
 //!
 //! The pipeline owns the decisions and no I/O. On every odometry event it predicts, then
 //! (with waypoints) runs the waypoint controller on the estimate and asks the daemon to drive
-//! the base. It sweeps once before driving, from the start pose (the one pose known exactly;
-//! those bearings anchor the map). After `sweep_every_s` of driving it stops the base, waits
+//! the base. It sweeps `start_sweeps` times before driving, from the start pose (the one pose
+//! known exactly; those bearings anchor the map). After `sweep_every_s` of driving it stops the base, waits
 //! until the odometry shows it standing still, and asks for one antenna sweep; the sweep's per-beacon peak RSSI
 //! and bearing update the filter (known association by 64-bit address) and driving resumes.
 //! A beacon not yet mapped gets bearing-only views until the filter's delayed initialisation
@@ -89,6 +89,8 @@ pub struct EkfSlamPipeline {
     driven_since_sweep: f64,
     still_since: Option<f64>,
     last_sweep_end: Option<f64>,
+    /// Sweeps still to take standing at the start pose before driving.
+    start_sweeps_left: u32,
     requests: Vec<Request>,
     counters: EkfSlamCounters,
 }
@@ -140,8 +142,10 @@ impl EkfSlamPipeline {
             )
         });
         let floor = s.bearing_floor_deg.to_radians();
-        // With waypoints, the first sweep is taken before driving, from the start pose.
-        let phase = if controller.is_some() {
+        // With waypoints, the first sweeps (`start_sweeps`) are taken before driving, from the
+        // start pose.
+        let controller_present = controller.is_some();
+        let phase = if controller_present {
             Phase::Stopping
         } else {
             Phase::Driving
@@ -167,6 +171,11 @@ impl EkfSlamPipeline {
             driven_since_sweep: 0.0,
             still_since: None,
             last_sweep_end: None,
+            start_sweeps_left: if controller_present {
+                s.start_sweeps.max(1)
+            } else {
+                0
+            },
             requests: Vec::new(),
             counters: EkfSlamCounters::default(),
         })
@@ -284,6 +293,8 @@ impl EkfSlamPipeline {
                         failed = self.counters.failed_sweeps,
                         "no sweep result; resuming without it"
                     );
+                    // The sweeps at the start are not retried: the device did not answer.
+                    self.start_sweeps_left = 0;
                     self.resume(t);
                 }
             }
@@ -378,7 +389,14 @@ impl EkfSlamPipeline {
                 tracing::warn!(reason = %reason, failed = self.counters.failed_sweeps, "sweep failed; resuming without it");
             }
         }
-        self.resume(now);
+        self.start_sweeps_left = self.start_sweeps_left.saturating_sub(1);
+        if self.start_sweeps_left > 0 {
+            // Still at the start pose: the next sweep as soon as the odometry shows it still.
+            self.phase = Phase::Stopping;
+            self.last_sweep_end = Some(now);
+        } else {
+            self.resume(now);
+        }
         Some(self.ekf.pose_estimate(now))
     }
 }
@@ -590,6 +608,67 @@ mod tests {
         assert_eq!(est.mode, EstimateMode::Degraded, "no beacon, no fix");
         assert_eq!(p.phase, Phase::Driving);
         assert_eq!(p.counters().sweeps, 2);
+    }
+
+    #[test]
+    fn takes_the_start_sweeps_standing_then_drives() {
+        let mut s = settings(vec![[5.0, 0.0]]);
+        s.start_sweeps = 3;
+        let mut p = EkfSlamPipeline::new(&s).unwrap();
+        p.handle(&odo(0.0, 0.0, 0.0, 0.0, 0.0));
+        let mut t = 0.0;
+        for k in 1..=3u64 {
+            t += 0.1;
+            p.handle(&odo(t, 0.0, 0.0, 0.0, 0.0));
+            assert_eq!(
+                p.take_requests(),
+                vec![Request::Sweep { heading_rad: 0.0 }],
+                "start sweep {k}"
+            );
+            t += 2.0;
+            p.handle(&sweep(t, Vec::new()));
+            assert_eq!(p.counters().sweeps, k);
+            let expected = if k < 3 {
+                Phase::Stopping
+            } else {
+                Phase::Driving
+            };
+            assert_eq!(p.phase, expected, "after start sweep {k}");
+        }
+        // Driving now: a forward command, no fourth sweep.
+        t += 0.1;
+        p.handle(&odo(t, 0.0, 0.0, 0.0, 0.0));
+        let r = p.take_requests();
+        assert!(
+            matches!(r.as_slice(), [Request::Velocity { v, .. }] if *v > 0.0),
+            "{r:?}"
+        );
+    }
+
+    #[test]
+    fn a_start_sweep_that_times_out_ends_the_start_sweeps() {
+        let mut s = settings(vec![[5.0, 0.0]]);
+        s.start_sweeps = 4;
+        s.sweep_timeout_s = 1.0;
+        let mut p = EkfSlamPipeline::new(&s).unwrap();
+        p.handle(&odo(0.0, 0.0, 0.0, 0.0, 0.0));
+        p.handle(&odo(0.1, 0.0, 0.0, 0.0, 0.0));
+        assert_eq!(p.take_requests(), vec![Request::Sweep { heading_rad: 0.0 }]);
+        // No result within the timeout: driving resumes and stays resumed after the next
+        // regular sweep.
+        p.handle(&odo(1.5, 0.0, 0.0, 0.0, 0.0));
+        assert_eq!(p.phase, Phase::Driving);
+        assert_eq!(p.counters().failed_sweeps, 1);
+        assert_eq!(p.start_sweeps_left, 0);
+    }
+
+    #[test]
+    fn without_waypoints_there_are_no_start_sweeps() {
+        let mut s = settings(Vec::new());
+        s.start_sweeps = 5;
+        let p = EkfSlamPipeline::new(&s).unwrap();
+        assert_eq!(p.start_sweeps_left, 0);
+        assert_eq!(p.phase, Phase::Driving);
     }
 
     #[test]
