@@ -145,8 +145,8 @@ const SUBSTEP_S: f64 = 0.01;
 /// Added in quadrature to every bearing σ from the sweep estimator, degrees (pattern and
 /// mounting calibration error). With [`START_SWEEPS`] sweeps at the start, 1° made the filter
 /// too cautious (30 route trials: bearing z RMS 0.89, final pose NEES per dof 0.70 and 0.63 on
-/// two seed sets, below their bands); 0.5° gives z RMS 0.97 and both NEES in their bands at
-/// the same accuracy (docs/results.md).
+/// two seed sets, band 0.73–1.31); 0.5° gives z RMS 0.97, beacon NEES in its band on both sets
+/// and pose NEES 0.81 / 0.70 at the same accuracy (docs/results.md).
 const BEARING_FLOOR_DEG: f64 = 0.5;
 
 /// Runs one trial.
