@@ -300,3 +300,45 @@ start = { x = 0.0, y = 0.0, theta_deg = 0.0 }
     assert_eq!(json["failures"], 1);
     assert_eq!(json["metrics"]["beacons_total"], 2.0);
 }
+
+/// Mission time (s) of the first `truth.csv` record more than 1 mm from the first one.
+fn first_move(trial: &Path) -> f64 {
+    let text = std::fs::read_to_string(trial.join("truth.csv")).unwrap();
+    let rows: Vec<Vec<f64>> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    let (x0, y0) = (rows[0][1], rows[0][2]);
+    rows.iter()
+        .find(|r| (r[1] - x0).hypot(r[2] - y0) > 1e-3)
+        .map_or(f64::INFINITY, |r| r[0])
+}
+
+/// `params.start_sweeps` acts: the robot stands at the start through that many sweeps (2 s of
+/// mission time each) before it drives, and sweeps that much more.
+#[test]
+fn the_start_sweeps_are_taken_standing_at_the_start() {
+    let tmp = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(workspace().join("scenarios/seed003-case1.toml")).unwrap();
+    let text = text.replace("duration_s = 300.0", "duration_s = 20.0");
+    let mut runs = Vec::new();
+    for n in [1, 4] {
+        let with = text.replace("[params]", &format!("[params]\nstart_sweeps = {n}"));
+        assert_ne!(with, text, "scenario has no [params]");
+        let path = tmp.path().join(format!("start{n}.toml"));
+        std::fs::write(&path, with).unwrap();
+        let out = tmp.path().join(format!("out{n}"));
+        let table = sim(&path, &out);
+        runs.push((first_move(&out.join("trial-00")), metric(&table, "sweeps")));
+    }
+    let [(move1, sweeps1), (move4, sweeps4)] = runs[..] else {
+        unreachable!()
+    };
+    assert!(move1 < 4.0, "one start sweep: first move at {move1} s");
+    assert!(
+        (8.0..12.0).contains(&move4),
+        "four start sweeps: first move at {move4} s"
+    );
+    assert!(sweeps4 > sweeps1, "{sweeps4} sweeps against {sweeps1}");
+}
