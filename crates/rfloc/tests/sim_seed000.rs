@@ -4,6 +4,8 @@
 //! a report. The trial is lock-step, so its numbers are the same on every run.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
+
 use std::path::PathBuf;
 use std::process::Command;
 
@@ -133,12 +135,7 @@ fn seed000_reduced_trial_learns_localises_and_records() {
         .lines()
         .map(|l| serde_json::from_str(l).unwrap())
         .collect();
-    let truth: Vec<Vec<f64>> = std::fs::read_to_string(trial.join("truth.csv"))
-        .unwrap()
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
-        .collect();
+    let truth = common::pose_rows(&trial.join("truth.csv"));
     assert!(
         poses.len() > 300 && truth.len() > 1,
         "{} poses",
@@ -158,12 +155,7 @@ fn seed000_reduced_trial_learns_localises_and_records() {
     );
 
     // One estimate per navigation step, all inside the 5 m × 5 m area.
-    let est = std::fs::read_to_string(trial.join("estimate.csv")).unwrap();
-    let rows: Vec<Vec<f64>> = est
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
-        .collect();
+    let rows = common::pose_rows(&trial.join("estimate.csv"));
     assert!(!rows.is_empty() && rows.len() <= 41);
     assert!(rows
         .iter()

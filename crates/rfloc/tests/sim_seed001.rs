@@ -3,6 +3,8 @@
 //! lock-step with the trial (simulated time only).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
+
 use std::path::PathBuf;
 use std::process::Command;
 
@@ -37,12 +39,7 @@ fn scenario_a_reaches_the_emitter_and_records_the_pioneer_link() {
 
     // Ground truth: the robot started at (0, 0) and ended within 0.5 m of the emitter (4, 0).
     let trial = out.path().join("trial-00");
-    let truth = std::fs::read_to_string(trial.join("truth.csv")).unwrap();
-    let rows: Vec<Vec<f64>> = truth
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
-        .collect();
+    let rows = common::pose_rows(&trial.join("truth.csv"));
     let first = rows.first().unwrap();
     assert!(first[1].abs() < 1e-6 && first[2].abs() < 1e-6, "{first:?}");
     let last = rows.last().unwrap();

@@ -287,11 +287,9 @@ start = { x = 0.0, y = 0.0, theta_deg = 0.0 }
     );
     let report = std::fs::read_to_string(out.join("report.md")).unwrap();
     assert!(report.contains("last waypoint not reached"), "{report}");
-    let truth = std::fs::read_to_string(out.join("trial-00/truth.csv")).unwrap();
-    let max_x = truth
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').nth(1).unwrap().parse::<f64>().unwrap())
+    let max_x = common::pose_rows(&out.join("trial-00/truth.csv"))
+        .iter()
+        .map(|r| r[1])
         .fold(f64::NEG_INFINITY, f64::max);
     assert!(max_x > 1.0, "the robot drove towards the wall: {max_x}");
     assert!(max_x <= 2.0 - 0.2 + 1e-6, "stopped by the wall: {max_x}");
@@ -303,12 +301,7 @@ start = { x = 0.0, y = 0.0, theta_deg = 0.0 }
 
 /// Mission time (s) of the first `truth.csv` record more than 1 mm from the first one.
 fn first_move(trial: &Path) -> f64 {
-    let text = std::fs::read_to_string(trial.join("truth.csv")).unwrap();
-    let rows: Vec<Vec<f64>> = text
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
-        .collect();
+    let rows = common::pose_rows(&trial.join("truth.csv"));
     let (x0, y0) = (rows[0][1], rows[0][2]);
     rows.iter()
         .find(|r| (r[1] - x0).hypot(r[2] - y0) > 1e-3)

@@ -10,6 +10,17 @@ use std::time::Duration;
 use tokio::io::{BufReader, Lines};
 use tokio::net::TcpStream;
 
+/// The numeric rows of a trial's pose file (`truth.csv`, `estimate.csv`: `t,x,y,theta`), the
+/// header skipped.
+pub fn pose_rows(path: &std::path::Path) -> Vec<Vec<f64>> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect()
+}
+
 /// Messages on `topic` in an MCAP file's summary statistics (0 when it has none).
 pub fn mcap_topic_count(summary: &mcap::Summary, topic: &str) -> u64 {
     let Some(stats) = summary.stats.as_ref() else {
